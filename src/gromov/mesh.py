@@ -1,0 +1,499 @@
+"""Immutable triangle meshes and point clouds with cached derived quantities.
+
+A :class:`Mesh` holds ``vertices`` ``(n, 3)`` float64 and ``faces`` ``(m, 3)`` int64
+(0-based). Both arrays are private read-only copies, so every cached quantity
+(edges, areas, adjacency, boundary loops, components...) stays valid for the
+object's lifetime. Operations that change a mesh return a new one.
+
+Every mesh also carries ``input_ids``: for each vertex, the index of the vertex it
+came from in the mesh as the user gave it (as read from the file). Repairs,
+component extraction and simplification compose these maps, so whatever gromov
+reports can be expressed in the user's own vertex numbering.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .errors import GromovWarning, MeshError
+
+__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "as_vertices", "as_faces"]
+
+logger = logging.getLogger(__name__)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+def as_vertices(vertices, *, name: str = "vertices") -> np.ndarray:
+    """Coerce to a finite ``(n, 3)`` float64 array or raise :class:`MeshError`."""
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"{name} must be numeric, got {type(vertices).__name__}: {exc}") from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"{name} must have shape (n, 3), got {v.shape}")
+    if v.shape[0] == 0:
+        raise MeshError(f"{name} is empty: a shape needs at least one vertex")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise MeshError(
+            f"{name} has {int(bad.sum())} non-finite (NaN or inf) coordinates, first at vertex "
+            f"{int(np.flatnonzero(bad)[0])}"
+        )
+    return v
+
+
+def as_faces(faces, n_vertices: int, *, name: str = "faces") -> np.ndarray:
+    """Coerce to an ``(m, 3)`` int64 array of valid 0-based indices or raise :class:`MeshError`."""
+    f = np.asarray(faces)
+    if f.size == 0:
+        raise MeshError(f"{name} is empty: a mesh needs at least one triangle")
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise MeshError(f"{name} must have shape (m, 3) (triangles), got {f.shape}")
+    if not np.issubdtype(f.dtype, np.integer):
+        if np.issubdtype(f.dtype, np.floating) and np.all(np.isfinite(f)) and np.all(f == np.round(f)):
+            f = f.astype(np.int64)
+        else:
+            raise MeshError(f"{name} must hold integer vertex indices, got dtype {f.dtype}")
+    f = f.astype(np.int64, copy=False)
+    if f.min() < 0:
+        raise MeshError(f"{name} has negative vertex index {int(f.min())} (indices are 0-based)")
+    if f.max() >= n_vertices:
+        raise MeshError(
+            f"{name} refers to vertex {int(f.max())} but the mesh has only {n_vertices} vertices"
+        )
+    return f
+
+
+class PointCloud:
+    """An immutable set of points in R^3 (``points`` ``(n, 3)`` float64).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+    input_ids : array_like of int, shape (n,), optional
+        Index of each point in the user's input; defaults to ``arange(n)``.
+    """
+
+    _coords_name = "points"
+
+    def __init__(self, points, *, input_ids=None):
+        v = as_vertices(points, name=self._coords_name)
+        self._vertices = _readonly(v)
+        ids = np.arange(len(v)) if input_ids is None else np.asarray(input_ids, dtype=np.int64)
+        if ids.shape != (len(v),):
+            raise MeshError(f"input_ids must have shape ({len(v)},), got {ids.shape}")
+        self._input_ids = _readonly(ids)
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """Point coordinates, ``(n, 3)`` float64, read-only."""
+        return self._vertices
+
+    points = vertices
+
+    @property
+    def input_ids(self) -> np.ndarray:
+        """Index of each point in the user's input, ``(n,)`` int64."""
+        return self._input_ids
+
+    @property
+    def n_vertices(self) -> int:
+        return self._vertices.shape[0]
+
+    @cached_property
+    def bbox(self) -> np.ndarray:
+        """``(2, 3)`` array: minimum and maximum corner."""
+        return _readonly(np.stack([self._vertices.min(0), self._vertices.max(0)]))
+
+    def knn_graph(self, k: int = 10) -> sp.csr_matrix:
+        """Symmetric sparse graph of Euclidean distances to the ``k`` nearest neighbours."""
+        return _knn_graph(self._vertices, k)
+
+    def __repr__(self) -> str:
+        return f"PointCloud(n_vertices={self.n_vertices})"
+
+
+def _knn_graph(points: np.ndarray, k: int) -> sp.csr_matrix:
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    if not 1 <= k < n:
+        raise ValueError(f"k must be in [1, {n - 1}] for {n} points, got {k}")
+    dist, idx = cKDTree(points).query(points, k=k + 1)
+    rows = np.repeat(np.arange(n), k)
+    g = sp.csr_matrix((dist[:, 1:].ravel(), (rows, idx[:, 1:].ravel())), shape=(n, n))
+    return g.maximum(g.T).tocsr()
+
+
+class Mesh(PointCloud):
+    """An immutable triangle mesh.
+
+    Parameters
+    ----------
+    vertices : array_like, shape (n, 3)
+        Coordinates; converted to float64. NaN/inf raise :class:`~gromov.errors.MeshError`.
+    faces : array_like of int, shape (m, 3)
+        0-based vertex indices of the triangles.
+    input_ids : array_like of int, shape (n,), optional
+        Index of each vertex in the user's input mesh (defaults to ``arange(n)``).
+
+    Notes
+    -----
+    The constructor only validates; it does not repair. Use :func:`repair` (which
+    :func:`gromov.load` calls) to remove degenerate faces, duplicate and unreferenced
+    vertices. Derived quantities are computed on first access and cached.
+    """
+
+    _coords_name = "vertices"
+
+    def __init__(self, vertices, faces, *, input_ids=None):
+        super().__init__(vertices, input_ids=input_ids)
+        self._faces = _readonly(as_faces(faces, self.n_vertices))
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def faces(self) -> np.ndarray:
+        """Triangles, ``(m, 3)`` int64, read-only."""
+        return self._faces
+
+    @property
+    def n_faces(self) -> int:
+        return self._faces.shape[0]
+
+    def __repr__(self) -> str:
+        return (f"Mesh(n_vertices={self.n_vertices}, n_faces={self.n_faces}, "
+                f"components={self.n_components}, boundary_loops={len(self.boundary_loops)})")
+
+    # ------------------------------------------------------------------ edges
+    @cached_property
+    def _half_edges(self) -> np.ndarray:
+        f = self._faces
+        return np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+
+    @cached_property
+    def _edge_data(self):
+        he = np.sort(self._half_edges, axis=1)
+        edges, inverse, counts = np.unique(he, axis=0, return_inverse=True, return_counts=True)
+        return edges, inverse.reshape(-1), counts
+
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """Unique undirected edges ``(e, 2)`` int64, each row sorted ascending."""
+        return _readonly(self._edge_data[0])
+
+    @cached_property
+    def edge_face_count(self) -> np.ndarray:
+        """Number of faces incident to each edge of :attr:`edges` (1 boundary, 2 interior, >2 non-manifold)."""
+        return _readonly(self._edge_data[2])
+
+    @cached_property
+    def face_edges(self) -> np.ndarray:
+        """``(m, 3)`` index into :attr:`edges` of the edges (v0v1, v1v2, v2v0) of each face."""
+        return _readonly(self._edge_data[1].reshape(3, -1).T)
+
+    @cached_property
+    def edge_lengths(self) -> np.ndarray:
+        e = self.edges
+        return _readonly(np.linalg.norm(self._vertices[e[:, 0]] - self._vertices[e[:, 1]], axis=1))
+
+    @cached_property
+    def mean_edge_length(self) -> float:
+        return float(self.edge_lengths.mean())
+
+    @cached_property
+    def nonmanifold_edges(self) -> np.ndarray:
+        """Edges shared by more than two faces, ``(k, 2)``."""
+        return _readonly(self.edges[self.edge_face_count > 2])
+
+    @cached_property
+    def is_edge_manifold(self) -> bool:
+        return bool(len(self.nonmanifold_edges) == 0)
+
+    # ------------------------------------------------------------------ areas
+    @cached_property
+    def _face_cross(self) -> np.ndarray:
+        v, f = self._vertices, self._faces
+        return np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        """Area of each triangle, ``(m,)``."""
+        return _readonly(0.5 * np.linalg.norm(self._face_cross, axis=1))
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """Unit normal of each triangle (zero for degenerate ones), ``(m, 3)``."""
+        c = self._face_cross
+        n = np.linalg.norm(c, axis=1, keepdims=True)
+        return _readonly(np.divide(c, n, out=np.zeros_like(c), where=n > 0))
+
+    @cached_property
+    def vertex_areas(self) -> np.ndarray:
+        """Barycentric (lumped) vertex areas: a third of the area of each incident face, ``(n,)``."""
+        a = np.zeros(self.n_vertices)
+        np.add.at(a, self._faces.ravel(), np.repeat(self.face_areas / 3.0, 3))
+        return _readonly(a)
+
+    @cached_property
+    def area(self) -> float:
+        return float(self.face_areas.sum())
+
+    # ------------------------------------------------------------------ connectivity
+    @cached_property
+    def adjacency(self) -> sp.csr_matrix:
+        """Symmetric ``(n, n)`` sparse matrix with the edge length at each mesh edge."""
+        e, w, n = self.edges, self.edge_lengths, self.n_vertices
+        a = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([e[:, 0], e[:, 1]]),
+                                                      np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n))
+        return a.tocsr()
+
+    @cached_property
+    def vertex_faces(self) -> tuple[np.ndarray, np.ndarray]:
+        """CSR-style incidence ``(indptr, face_ids)``: faces of vertex i are ``face_ids[indptr[i]:indptr[i+1]]``."""
+        flat = self._faces.ravel()
+        order = np.argsort(flat, kind="stable")
+        indptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(flat, minlength=self.n_vertices), out=indptr[1:])
+        return _readonly(indptr), _readonly(order // 3)
+
+    @cached_property
+    def referenced(self) -> np.ndarray:
+        """Boolean mask of vertices used by at least one face."""
+        m = np.zeros(self.n_vertices, bool)
+        m[self._faces.ravel()] = True
+        return _readonly(m)
+
+    @cached_property
+    def _components(self) -> tuple[int, np.ndarray]:
+        n, labels = connected_components(self.adjacency, directed=False)
+        return n, labels
+
+    @property
+    def n_components(self) -> int:
+        """Number of connected components (an unreferenced vertex is its own component)."""
+        return self._components[0]
+
+    @property
+    def component_labels(self) -> np.ndarray:
+        """Component index of each vertex, ``(n,)``."""
+        return self._components[1]
+
+    @cached_property
+    def boundary_edges(self) -> np.ndarray:
+        """Edges with exactly one incident face, ``(b, 2)``."""
+        return _readonly(self.edges[self.edge_face_count == 1])
+
+    @cached_property
+    def boundary_loops(self) -> list[np.ndarray]:
+        """Closed loops of boundary vertices (each a vertex-index array), longest first.
+
+        Boundary edges are walked as an undirected graph; a vertex where several
+        loops touch (a bow-tie) is visited once per loop.
+        """
+        be = self.boundary_edges
+        if len(be) == 0:
+            return []
+        nb = sp.coo_matrix((np.ones(2 * len(be)), (be.ravel(), be[:, ::-1].ravel())),
+                           shape=(self.n_vertices,) * 2).tocsr()
+        used = np.zeros(len(be), bool)
+        # edge lookup: (min, max) -> edge row
+        key = {(int(a), int(b)): i for i, (a, b) in enumerate(be)}
+        loops = []
+        for start in range(len(be)):
+            if used[start]:
+                continue
+            used[start] = True
+            a, b = int(be[start, 0]), int(be[start, 1])
+            loop = [a]
+            prev, cur = a, b
+            while cur != a:
+                loop.append(cur)
+                nxt = None
+                for w in nb.indices[nb.indptr[cur]:nb.indptr[cur + 1]]:
+                    w = int(w)
+                    i = key[(min(cur, w), max(cur, w))]
+                    if not used[i]:
+                        used[i] = True
+                        nxt = w
+                        break
+                if nxt is None:  # open chain (non-manifold boundary); stop here
+                    break
+                prev, cur = cur, nxt
+            loops.append(np.asarray(loop, dtype=np.int64))
+        loops.sort(key=len, reverse=True)
+        return loops
+
+    @cached_property
+    def euler_characteristic(self) -> int:
+        """V - E + F over referenced vertices."""
+        return int(self.referenced.sum()) - len(self.edges) + self.n_faces
+
+    @cached_property
+    def genus(self) -> float:
+        """Genus of an orientable surface: ``(2c - chi - b) / 2``.
+
+        ``c`` components (of referenced vertices), ``b`` boundary loops. Only meaningful for
+        edge-manifold meshes; returned as a float so that a non-integer value flags a problem.
+        """
+        c = int(len(np.unique(self.component_labels[self.referenced])))
+        return (2 * c - self.euler_characteristic - len(self.boundary_loops)) / 2.0
+
+    @cached_property
+    def bbox(self) -> np.ndarray:
+        v = self._vertices[self.referenced]
+        return _readonly(np.stack([v.min(0), v.max(0)]))
+
+    # ------------------------------------------------------------------ derived meshes
+    def submesh(self, vertex_mask) -> "Mesh":
+        """The mesh induced by the vertices where ``vertex_mask`` is true (faces with all three kept)."""
+        keep = np.asarray(vertex_mask, bool)
+        if keep.shape != (self.n_vertices,):
+            raise MeshError(f"vertex_mask must have shape ({self.n_vertices},), got {keep.shape}")
+        new = np.full(self.n_vertices, -1, np.int64)
+        new[keep] = np.arange(int(keep.sum()))
+        faces = new[self._faces]
+        faces = faces[(faces >= 0).all(axis=1)]
+        return Mesh(self._vertices[keep], faces, input_ids=self._input_ids[keep])
+
+    def largest_component(self) -> "Mesh":
+        """The connected component with the largest area, as a new mesh (``input_ids`` kept)."""
+        if self.n_components == 1:
+            return self
+        area = np.bincount(self.component_labels, weights=self.vertex_areas, minlength=self.n_components)
+        return self.submesh(self.component_labels == int(np.argmax(area)))
+
+    def with_vertices(self, vertices) -> "Mesh":
+        """Same connectivity and ``input_ids``, new coordinates (e.g. another pose)."""
+        v = as_vertices(vertices)
+        if v.shape != self._vertices.shape:
+            raise MeshError(f"vertices must have shape {self._vertices.shape}, got {v.shape}")
+        return Mesh(v, self._faces, input_ids=self._input_ids)
+
+    def summary(self) -> dict:
+        """Counts and topology as a plain dict (what ``gromov info`` prints)."""
+        lo, hi = self.bbox
+        return {
+            "vertices": self.n_vertices,
+            "faces": self.n_faces,
+            "edges": len(self.edges),
+            "components": int(len(np.unique(self.component_labels[self.referenced]))),
+            "boundary_loops": len(self.boundary_loops),
+            "nonmanifold_edges": len(self.nonmanifold_edges),
+            "euler_characteristic": self.euler_characteristic,
+            "genus": self.genus,
+            "area": self.area,
+            "mean_edge_length": self.mean_edge_length,
+            "bbox_min": lo.tolist(),
+            "bbox_max": hi.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    """What :func:`repair` changed. Counts refer to the mesh that was given."""
+
+    degenerate_faces: int = 0
+    duplicate_faces: int = 0
+    duplicate_vertices: int = 0
+    unreferenced_vertices: int = 0
+    messages: list[str] = field(default_factory=list)
+
+    @property
+    def changed(self) -> bool:
+        return bool(self.degenerate_faces or self.duplicate_faces or self.duplicate_vertices
+                    or self.unreferenced_vertices)
+
+
+def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple[Mesh, RepairReport]:
+    """Remove what breaks intrinsic metrics, keeping the map to the input vertices.
+
+    In order: merge vertices with identical coordinates, drop faces with a repeated
+    vertex or zero area, drop repeated faces, drop vertices no face uses. The result's
+    ``input_ids`` still name the vertices of ``mesh``'s input; a merged vertex keeps the
+    smallest input id.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    warn : bool, default True
+        Emit a :class:`~gromov.errors.GromovWarning` describing each repair.
+    source : str, optional
+        Name of the file, used in the warnings.
+
+    Returns
+    -------
+    repaired : Mesh
+        ``mesh`` itself when nothing needed repair.
+    report : RepairReport
+    """
+    v, f, ids = mesh.vertices, mesh.faces, mesh.input_ids
+    where = f" in {source}" if source else ""
+    msgs: list[str] = []
+
+    # 1. duplicate vertices (exactly equal coordinates)
+    uniq, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    n_dup = len(v) - len(uniq)
+    if n_dup:
+        # keep the first occurrence, in original order
+        order = np.argsort(first)
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        remap = rank[inverse]
+        v = v[np.sort(first)]
+        ids = ids[np.sort(first)]
+        f = remap[f]
+        msgs.append(f"merged {n_dup} duplicate vertices{where}")
+
+    # 2. degenerate faces: repeated index or zero area
+    rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    scale = max(float(np.ptp(v, axis=0).max()), np.finfo(float).tiny)
+    zero = np.linalg.norm(cross, axis=1) <= (1e-14 * scale * scale)
+    degenerate = rep | zero
+    n_deg = int(degenerate.sum())
+    if n_deg:
+        f = f[~degenerate]
+        msgs.append(f"removed {n_deg} degenerate (zero-area) faces{where}")
+
+    # 3. repeated faces (same vertex set)
+    n_dupf = 0
+    if len(f):
+        _, keep = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+        n_dupf = len(f) - len(keep)
+        if n_dupf:
+            f = f[np.sort(keep)]
+            msgs.append(f"removed {n_dupf} repeated faces{where}")
+    if len(f) == 0:
+        raise MeshError(f"no valid triangle left after removing degenerate faces{where}")
+
+    # 4. unreferenced vertices
+    used = np.zeros(len(v), bool)
+    used[f.ravel()] = True
+    n_unref = int((~used).sum())
+    if n_unref:
+        new = np.cumsum(used) - 1
+        f = new[f]
+        v, ids = v[used], ids[used]
+        msgs.append(f"removed {n_unref} unreferenced vertices{where}")
+
+    report = RepairReport(n_deg, n_dupf, n_dup, n_unref, msgs)
+    if not report.changed:
+        return mesh, report
+    for m in msgs:
+        logger.info(m)
+        if warn:
+            warnings.warn(m, GromovWarning, stacklevel=2)
+    return Mesh(v, f, input_ids=ids), report
