@@ -2,14 +2,34 @@
 
 Implements Bronstein, Bronstein, Mahmoudi, Kimmel & Sapiro, "A Gromov-Hausdorff framework
 with diffusion geometry for topologically-robust non-rigid shape matching", IJCV 89 (2010).
+
+The pipeline, one module each: ``io`` (load/save) -> ``mesh`` (Mesh, PointCloud) ->
+``resolution`` (working meshes) -> ``metrics`` (geodesic, diffusion, euclidean) ->
+``sampling`` (farthest points).
 """
 
 from .errors import GromovError, GromovWarning, MeshError, MeshFormatError, MetricError
+from .io import load, save
 from .mesh import Mesh, PointCloud, RepairReport, repair
+from .metrics import (
+    EuclideanSolver,
+    GeodesicSolver,
+    GraphDiffusionSolver,
+    HeatDiffusionSolver,
+    MetricSolver,
+    distance_matrix,
+    metric_solver,
+)
+from .resolution import WorkingMesh, simplify, working_mesh
+from .sampling import Samples, farthest_point_sampling
 
 __version__ = "0.1.0"
 
 __all__ = [
     "GromovError", "GromovWarning", "MeshError", "MeshFormatError", "MetricError",
-    "Mesh", "PointCloud", "RepairReport", "repair", "__version__",
+    "load", "save", "Mesh", "PointCloud", "RepairReport", "repair",
+    "MetricSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver",
+    "EuclideanSolver", "metric_solver", "distance_matrix",
+    "WorkingMesh", "simplify", "working_mesh", "Samples", "farthest_point_sampling",
+    "__version__",
 ]

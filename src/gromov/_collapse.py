@@ -1,0 +1,185 @@
+"""Topology-safe replay of an edge-collapse sequence (compiled kernel).
+
+The quadric simplifier proposes an order of half-edge collapses ``(keep, remove)``. Replaying
+it, we apply a collapse only when it is a legal edge contraction of the current mesh:
+
+- ``keep`` and ``remove`` share an edge with one or two incident faces (manifold edge);
+- the *link condition* holds: the common neighbours of the two vertices are exactly the
+  opposite vertices of the faces on that edge (Dey, Edelsbrunner, Guha & Nekhayev,
+  "Topology preserving edge contraction", Publ. Inst. Math. 1999), so the contraction is a
+  homeomorphism and the Euler characteristic is kept;
+- an interior edge never joins two boundary vertices (that would pinch the boundary);
+- since the kept vertex stays at its own input position, no face around ``remove`` flips or
+  becomes degenerate when ``remove`` moves onto ``keep``.
+
+Collapses that fail are skipped; later ones that involve the same vertices remain valid
+because a skipped collapse leaves both vertices alive.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["replay_collapses"]
+
+
+@njit(cache=True)
+def _remove_face(vf, vcount, v, f):
+    c = vcount[v]
+    for k in range(c):
+        if vf[v, k] == f:
+            vf[v, k] = vf[v, c - 1]
+            vf[v, c - 1] = -1
+            vcount[v] = c - 1
+            return
+
+
+@njit(cache=True)
+def _normal(p, q, r):
+    a0, a1, a2 = q[0] - p[0], q[1] - p[1], q[2] - p[2]
+    b0, b1, b2 = r[0] - p[0], r[1] - p[1], r[2] - p[2]
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def _n_neighbours(F, vf, vcount, v, stamp, tick):
+    cnt = 0
+    for k in range(vcount[v]):
+        f = vf[v, k]
+        for j in range(3):
+            w = F[f, j]
+            if w != v and stamp[w] != tick:
+                stamp[w] = tick
+                cnt += 1
+    return cnt
+
+
+@njit(cache=True)
+def _replay(V, F, collapses, cap, min_cos):
+    n, m = V.shape[0], F.shape[0]
+    F = F.copy()
+    vcount = np.zeros(n, np.int64)
+    for f in range(m):
+        for j in range(3):
+            vcount[F[f, j]] += 1
+    width = max(cap, vcount.max() * 4)
+    vf = -np.ones((n, width), np.int64)
+    fill = np.zeros(n, np.int64)
+    for f in range(m):
+        for j in range(3):
+            v = F[f, j]
+            vf[v, fill[v]] = f
+            fill[v] += 1
+    face_alive = np.ones(m, np.bool_)
+    alive = np.ones(n, np.bool_)
+    applied = np.zeros(collapses.shape[0], np.bool_)
+    stamp = np.zeros(n, np.int64)
+    tick = 0
+    shared = np.empty(width, np.int64)
+    for c in range(collapses.shape[0]):
+        a, b = collapses[c, 0], collapses[c, 1]
+        if a == b or not alive[a] or not alive[b]:
+            continue
+        if vcount[a] + vcount[b] > width:
+            continue
+        # faces on edge (a, b) and their opposite vertices
+        ns = 0
+        for k in range(vcount[b]):
+            f = vf[b, k]
+            if F[f, 0] == a or F[f, 1] == a or F[f, 2] == a:
+                shared[ns] = f
+                ns += 1
+        if ns == 0 or ns > 2:
+            continue
+        # boundary vertices have one more neighbour than faces
+        tick += 1
+        a_boundary = _n_neighbours(F, vf, vcount, a, stamp, tick) != vcount[a]
+        tick += 1
+        b_boundary = _n_neighbours(F, vf, vcount, b, stamp, tick) != vcount[b]
+        if ns == 2 and a_boundary and b_boundary:
+            continue
+        # link condition: |N(a) & N(b)| == number of faces on the edge
+        tick += 1
+        for k in range(vcount[a]):
+            f = vf[a, k]
+            for j in range(3):
+                stamp[F[f, j]] = tick
+        tick += 1
+        common = 0
+        for k in range(vcount[b]):
+            f = vf[b, k]
+            for j in range(3):
+                w = F[f, j]
+                if w != a and w != b and stamp[w] == tick - 1:
+                    stamp[w] = tick
+                    common += 1
+        if common != ns:
+            continue
+        # no flipped or degenerate face when b moves onto a
+        ok = True
+        for k in range(vcount[b]):
+            f = vf[b, k]
+            is_shared = False
+            for s in range(ns):
+                if shared[s] == f:
+                    is_shared = True
+            if is_shared:
+                continue
+            p = [F[f, 0], F[f, 1], F[f, 2]]
+            n0 = _normal(V[p[0]], V[p[1]], V[p[2]])
+            for j in range(3):
+                if p[j] == b:
+                    p[j] = a
+            n1 = _normal(V[p[0]], V[p[1]], V[p[2]])
+            l0 = np.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
+            l1 = np.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
+            if l1 <= 1e-12 * (l0 + 1e-300) or (n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2]) < min_cos * l0 * l1:
+                ok = False
+                break
+        if not ok:
+            continue
+        # apply
+        for s in range(ns):
+            f = shared[s]
+            face_alive[f] = False
+            for j in range(3):
+                _remove_face(vf, vcount, F[f, j], f)
+        for k in range(vcount[b]):
+            f = vf[b, k]
+            for j in range(3):
+                if F[f, j] == b:
+                    F[f, j] = a
+            vf[a, vcount[a]] = f
+            vcount[a] += 1
+        vcount[b] = 0
+        alive[b] = False
+        applied[c] = True
+    return alive, F[face_alive], applied
+
+
+def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndarray, *,
+                     min_cos: float = 0.0):
+    """Apply the legal collapses of ``collapses`` (rows ``(keep, remove)``) to a mesh.
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (n, 3)
+    faces : ndarray, shape (m, 3)
+    collapses : ndarray, shape (c, 2)
+    min_cos : float, default 0.0
+        A face around the removed vertex may turn by at most ``arccos(min_cos)``.
+
+    Returns
+    -------
+    alive : ndarray of bool, shape (n,)
+        Vertices that remain.
+    faces : ndarray, shape (m', 3)
+        Remaining faces, in input vertex indices.
+    applied : ndarray of bool, shape (c,)
+        Which collapses were applied.
+    """
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    c = np.ascontiguousarray(collapses, dtype=np.int64).reshape(-1, 2)
+    return _replay(v, f, c, 64, float(min_cos))

@@ -1,0 +1,238 @@
+"""Command-line interface: ``gromov info``, ``gromov distances``, ``gromov demo``.
+
+Thin: parses arguments, calls the library, prints. User errors (unreadable file, bad
+option values, a metric that cannot be computed) print one line ``gromov: error: ...``
+and exit with status 2; no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .errors import GromovError
+
+__all__ = ["main"]
+
+DEFAULT_RESOLUTION = 3000
+
+
+class _UserError(Exception):
+    pass
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def _metric_options(args) -> dict:
+    if args.metric == "geodesic":
+        return {"method": args.geodesic_method} if args.geodesic_method else {}
+    if args.metric == "diffusion":
+        opts = {"kernel": args.kernel}
+        if args.kernel == "heat":
+            if args.tau is not None:
+                opts["tau"] = args.tau
+        else:
+            opts["m"] = args.steps
+        return opts
+    return {}
+
+
+def _add_metric_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--metric", choices=("geodesic", "diffusion", "euclidean"), default="diffusion",
+                   help="distance on the surface (default: diffusion)")
+    p.add_argument("--geodesic-method", choices=("fmm", "heat", "exact", "dijkstra"), default=None,
+                   help="geodesic backend (default: fmm on meshes, dijkstra on point clouds)")
+    p.add_argument("--kernel", choices=("connectivity", "gaussian", "heat"), default="connectivity",
+                   help="diffusion affinity: the paper's connectivity kernel (default), a Gaussian "
+                        "k-NN kernel, or the resolution-independent Laplace-Beltrami heat kernel")
+    p.add_argument("--steps", type=_positive_int, default=50, help="diffusion steps m (default 50)")
+    p.add_argument("--tau", type=float, default=None,
+                   help="heat-kernel diffusion time relative to the area (default 0.005)")
+
+
+def _load(path: str):
+    from .io import load
+
+    return load(path)
+
+
+def _progress(total: int, desc: str, quiet: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="row", disable=quiet or total < 512, leave=False,
+                file=sys.stderr)
+
+
+# ----------------------------------------------------------------------------- commands
+def cmd_info(args) -> int:
+    from .mesh import Mesh
+    from .metrics import GeodesicSolver
+
+    shape = _load(args.mesh)
+    if not isinstance(shape, Mesh):
+        lo, hi = shape.bbox
+        info = {"file": args.mesh, "type": "point cloud", "vertices": shape.n_vertices,
+                "bbox_min": lo.tolist(), "bbox_max": hi.tolist()}
+    else:
+        info = {"file": args.mesh, "type": "triangle mesh", **shape.summary()}
+        t = time.perf_counter()
+        info["geodesic_diameter"] = GeodesicSolver(shape).diameter()
+        info["diameter_seconds"] = round(time.perf_counter() - t, 3)
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    width = max(len(k) for k in info)
+    for k, v in info.items():
+        if isinstance(v, float):
+            v = f"{v:.6g}"
+        elif isinstance(v, list):
+            v = "(" + ", ".join(f"{x:.6g}" for x in v) + ")"
+        print(f"{k.replace('_', ' '):<{width}}  {v}")
+    return 0
+
+
+def cmd_distances(args) -> int:
+    from .mesh import Mesh
+    from .metrics import metric_solver
+    from .resolution import working_mesh
+    from .sampling import farthest_point_sampling
+
+    shape = _load(args.mesh)
+    t0 = time.perf_counter()
+    if isinstance(shape, Mesh):
+        work = working_mesh(shape, args.resolution)
+        target, to_input = work.mesh, work.to_input_ids
+    else:  # point cloud: Euclidean farthest points as the working resolution
+        from .metrics import EuclideanSolver
+        from .mesh import PointCloud
+
+        if shape.n_vertices > args.resolution:
+            keep = farthest_point_sampling(EuclideanSolver(shape), args.resolution, seed=args.seed).indices
+            keep = np.sort(keep)
+            target = PointCloud(shape.vertices[keep], input_ids=shape.input_ids[keep])
+        else:
+            target = shape
+        to_input = lambda idx: target.input_ids[np.asarray(idx)]  # noqa: E731
+    if args.samples is not None and args.samples > target.n_vertices:
+        raise _UserError(f"--samples {args.samples} is more than the {target.n_vertices} vertices "
+                         f"of the working mesh of {args.mesh}")
+    solver = metric_solver(target, args.metric, **_metric_options(args))
+    if args.samples is None:
+        idx = np.arange(target.n_vertices)
+        with _progress(target.n_vertices, f"{args.metric} distances", args.quiet) as bar:
+            dist = solver.pairwise(progress=bar.update)
+        radius = 0.0
+    else:
+        with _progress(args.samples, "farthest point sampling", args.quiet) as bar:
+            fps = farthest_point_sampling(solver, args.samples, seed=args.seed)
+            bar.update(args.samples)
+        idx, radius = fps.indices, fps.radius
+        dist = solver.submatrix(idx)
+    seconds = time.perf_counter() - t0
+    out = Path(args.out)
+    if out.parent and not out.parent.exists():
+        raise _UserError(f"output folder {out.parent} does not exist")
+    np.savez_compressed(
+        out, distances=np.asarray(dist, dtype=np.float64), samples=to_input(idx).astype(np.int64),
+        working_vertices=idx.astype(np.int64), metric=args.metric,
+        options=json.dumps(_metric_options(args)), resolution=target.n_vertices,
+        seed=args.seed, covering_radius=radius)
+    if not args.quiet:
+        print(f"{args.mesh}: {len(idx)} samples on a {target.n_vertices}-vertex working shape, "
+              f"{args.metric} distances in [{np.min(dist[dist > 0]) if len(idx) > 1 else 0:.4g}, "
+              f"{np.max(dist):.4g}], covering radius {radius:.4g}, {seconds:.2f} s -> {out}")
+    return 0
+
+
+def cmd_demo(args) -> int:
+    from .metrics import metric_solver
+    from .sampling import farthest_point_sampling
+    from .shapes import torus
+
+    np.set_printoptions(precision=3, suppress=True, linewidth=120)
+    shape = torus(64, 32)
+    print(f"gromov {__version__} demo: a built-in torus, {shape.n_vertices} vertices, "
+          f"Euler characteristic {shape.euler_characteristic}, genus {shape.genus:g}\n")
+    for metric, opts in (("geodesic", {}), ("diffusion", {}), ("diffusion", {"kernel": "heat"})):
+        t = time.perf_counter()
+        s = metric_solver(shape, metric, **opts)
+        d = s.pairwise()
+        fps = farthest_point_sampling(s, args.samples, seed=args.seed)
+        label = metric + (f" ({opts['kernel']} kernel)" if opts else "")
+        print(f"{label}: all {shape.n_vertices}^2 distances in {time.perf_counter() - t:.2f} s, "
+              f"diameter {d.max():.4g}")
+        print(f"  {args.samples} farthest point samples {fps.indices.tolist()}")
+        print(f"  covering radius {fps.radius:.4g} (after each sample: "
+              + ", ".join(f"{r:.3g}" for r in fps.radii) + ")")
+        print("  distances between the first 6 samples:")
+        print("  " + str(s.submatrix(fps.indices[:6])).replace("\n", "\n  ") + "\n")
+    return 0
+
+
+# ----------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gromov", description=(
+        "Non-rigid shape matching in the Gromov-Hausdorff framework with diffusion geometry."))
+    p.add_argument("--version", action="version", version=f"gromov {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv: debug)")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    q = sub.add_parser("info", help="counts, topology, diameter and bounding box of a mesh")
+    q.add_argument("mesh", help="OFF, OBJ, PLY, STL (optionally .gz) or TOSCA .vert/.tri")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.set_defaults(func=cmd_info)
+
+    q = sub.add_parser("distances", help="distance matrix between farthest point samples")
+    q.add_argument("mesh")
+    _add_metric_args(q)
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count (default {DEFAULT_RESOLUTION}; meshes "
+                        "with fewer vertices are used as they are)")
+    q.add_argument("--samples", type=_positive_int, default=None,
+                   help="number of farthest point samples (default: all working vertices)")
+    q.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
+    q.add_argument("--out", required=True, help="output .npz with 'distances' (K,K) and 'samples' (K,)")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    q.set_defaults(func=cmd_distances)
+
+    q = sub.add_parser("demo", help="distances and samples on a built-in shape")
+    q.add_argument("--samples", type=_positive_int, default=12)
+    q.add_argument("--seed", type=int, default=0)
+    q.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
+                        format="%(levelname)s %(name)s: %(message)s")
+    warnings.simplefilter("default")
+    warnings.formatwarning = lambda msg, cat, *a, **k: f"gromov: warning: {msg}\n"
+    try:
+        return args.func(args)
+    except (GromovError, _UserError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"gromov: error: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # invalid parameter values that reached the library
+        print(f"gromov: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:  # pragma: no cover
+        print("gromov: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,1049 @@
+"""Reading and writing meshes: OFF, OBJ, PLY, STL and TOSCA ``.vert``/``.tri`` pairs.
+
+All I/O lives here, with one reader and one writer per format in the registry
+:data:`FORMATS` (extension -> :class:`FileFormat`), so adding a format means adding one
+entry. Any file may be gzip-compressed: a name ending in ``.gz`` (``cat0.off.gz``) is
+decompressed on reading and compressed on writing.
+
+Design choices
+--------------
+* **Vertex ids are sacred.** Vertices are returned exactly in file order, unreferenced
+  ones included, never merged or sorted by the reader; faces keep file order too. Only
+  :func:`gromov.mesh.repair` (run by :func:`load` unless ``repair=False``) removes
+  anything, and the result's ``input_ids`` map back to the file's 0-based vertex numbers.
+* **Strict parsing.** Every reader is our own small numpy parser (fast path:
+  ``numpy.loadtxt``'s C tokenizer; on any irregularity a line-by-line pass finds the
+  culprit and names its line). trimesh 5.2 was evaluated and not used for reading: with
+  ``process=False`` it silently accepts truncated OFF/ASCII-PLY/ASCII-STL files (fewer
+  faces than the header says, or an empty ``Scene``), maps OBJ index ``0`` to a wrong
+  vertex, drops 2-vertex OBJ faces, reorders faces of mixed triangle/quad PLY files,
+  writes PLY vertices as float32 and fails on a truncated binary STL with an unrelated
+  ``ModuleNotFoundError``.
+* **Errors.** Every problem with a file raises :class:`~gromov.errors.MeshFormatError`
+  whose message starts with the file name; a missing file raises
+  :class:`MeshFileNotFoundError`, which is both a ``MeshFormatError`` and a
+  ``FileNotFoundError``.
+
+Format notes
+------------
+OFF
+    0-based indices; ``#`` comments, blank lines, counts on the ``OFF`` line or the next
+    one, colour values after the face indices; ``COFF``/``NOFF``/``STOFF`` vertex
+    lines may carry extra values (ignored). Binary OFF is not supported.
+OBJ
+    ``v`` and ``f`` statements (``f 1/2/3`` and negative relative indices allowed);
+    texture coordinates, normals, groups and materials are ignored.
+PLY
+    ASCII and binary (both endiannesses); ``vertex`` element with ``x y z`` and an
+    optional ``face`` element with a ``vertex_indices`` (or ``vertex_index``) list.
+    Written as binary little-endian with ``double`` coordinates (exact round trip).
+STL
+    ASCII and binary. STL has no shared vertices: corners with identical coordinates
+    are merged while reading (silently; this is how the format works), and vertices are
+    numbered by first appearance. Binary STL stores float32, so a round trip is exact
+    only to float32 precision.
+TOSCA ``.vert``/``.tri``
+    ``.vert``: one ``x y z`` per line; ``.tri``: one triangle per line, 1-based.
+    Loading either file reads both; saving writes both.
+
+Polygons with more than three vertices are split into triangle fans, with a
+:class:`~gromov.errors.GromovWarning`.
+"""
+
+from __future__ import annotations
+
+import gzip
+import logging
+import os
+import re
+import struct
+import warnings
+import zlib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import mesh as _mesh
+from .errors import GromovWarning, MeshError, MeshFormatError
+from .mesh import Mesh, PointCloud
+
+__all__ = ["load", "save", "FORMATS", "FileFormat", "MeshFileNotFoundError"]
+
+logger = logging.getLogger(__name__)
+
+
+class MeshFileNotFoundError(MeshFormatError, FileNotFoundError):
+    """A mesh file (or the partner file of a TOSCA ``.vert``/``.tri`` pair) does not exist.
+
+    Caught by ``except MeshFormatError``, ``except ValueError`` and
+    ``except FileNotFoundError`` alike. The message names the missing file.
+    """
+
+
+# Exceptions that malformed input can raise inside numpy / struct / the decoders; they are
+# turned into MeshFormatError with the file name (anything else is a bug and propagates).
+_PARSE_ERRORS = (ValueError, IndexError, KeyError, TypeError, OverflowError, struct.error,
+                 UnicodeError, EOFError, zlib.error)
+
+
+def _err(name: str, problem: str) -> MeshFormatError:
+    return MeshFormatError(f"{name}: {problem}")
+
+
+# --------------------------------------------------------------------------- raw shape
+@dataclass
+class RawShape:
+    """What a reader returns: file content before validation, triangulation and repair.
+
+    Attributes
+    ----------
+    vertices : ndarray, shape (n, 3), float64
+        In file order.
+    counts : ndarray of int, shape (m,), or None
+        Number of vertices of each polygon; ``None`` (or empty) for a point cloud.
+    flat : ndarray of int, shape (counts.sum(),), or None
+        The polygons' vertex indices, concatenated, already converted to 0-based.
+    base : int
+        Index base of the file format (0 or 1), only used in error messages.
+    vertex_file, face_file : str
+        Files the vertices and the faces were read from (used in messages).
+    vertex_lines, face_lines : sequence of int, optional
+        1-based line number of each vertex / polygon in its file (text formats).
+    """
+
+    vertices: np.ndarray
+    counts: np.ndarray | None
+    flat: np.ndarray | None
+    base: int
+    vertex_file: str
+    face_file: str
+    vertex_lines: Sequence[int] | None = None
+    face_lines: Sequence[int] | None = None
+
+
+# --------------------------------------------------------------------------- text helpers
+def _decode(data: bytes) -> str:
+    return data.decode("utf-8", errors="replace")
+
+
+def _content_lines(text: str, comment: str | None = "#") -> tuple[list[str], list[int]]:
+    """Lines with comments stripped and blank lines dropped, plus their 1-based numbers."""
+    lines = text.splitlines()
+    if comment is not None and comment in text:
+        lines = [ln.partition(comment)[0] for ln in lines]
+    nums = [i for i, ln in enumerate(lines, 1) if ln and not ln.isspace()]
+    content = lines if len(nums) == len(lines) else [lines[i - 1] for i in nums]
+    return content, nums
+
+
+def _loadtxt(rows: list[str], dtype=np.float64) -> np.ndarray | None:
+    """``numpy.loadtxt`` on whitespace-separated rows, or ``None`` if they are irregular."""
+    try:
+        return np.loadtxt(rows, dtype=dtype, ndmin=2, comments=None)
+    except ValueError:
+        return None
+
+
+def _parse_int(tok: str) -> int:
+    """An integer token; ``"3.0"`` is accepted, ``"3.5"``/``"nan"`` raise ``ValueError``."""
+    try:
+        return int(tok)
+    except ValueError:
+        f = float(tok)
+        if not f.is_integer():
+            raise
+        return int(f)
+
+
+def _float_rows(rows: list[str], nums: Sequence[int], name: str, what: str, ncols: int,
+                exact: bool) -> np.ndarray:
+    """Parse ``rows`` of at least (or, if ``exact``, exactly) ``ncols`` numbers; first ``ncols``."""
+    a = _loadtxt(rows)
+    if a is not None and a.shape[0] == len(rows) and (
+            a.shape[1] == ncols if exact else a.shape[1] >= ncols):
+        return a[:, :ncols]
+    out = np.empty((len(rows), ncols))
+    for r, (row, line) in enumerate(zip(rows, nums)):
+        toks = row.split()
+        if len(toks) < ncols or (exact and len(toks) != ncols):
+            raise _err(name, f"line {line}: {what} needs {'exactly ' if exact else ''}{ncols} "
+                             f"values, found {len(toks)}: {row.strip()!r}")
+        for c, tok in enumerate(toks[:ncols]):
+            try:
+                out[r, c] = float(tok)
+            except ValueError:
+                raise _err(name, f"line {line}: non-numeric value {tok!r} in {what}") from None
+    return out
+
+
+def _polygon_rows(rows: list[str], nums: Sequence[int], name: str, *, counted: bool,
+                  base: int) -> tuple[np.ndarray, np.ndarray]:
+    """Parse face rows into ``(counts, flat)`` 0-based indices.
+
+    ``counted``: OFF/PLY style ``k i1 .. ik [extra values ignored]``; otherwise every row is
+    exactly three indices (TOSCA ``.tri``).
+    """
+    m = len(rows)
+    a = _loadtxt(rows)
+    if a is not None and a.shape[0] == m:
+        # columns holding indices (OFF/PLY rows may end with colour values, ignored)
+        idx = None
+        if counted:
+            k0 = a[0, 0]
+            if np.all(a[:, 0] == k0) and 3 <= k0 < a.shape[1]:
+                idx = a[:, 1:int(k0) + 1]
+        elif a.shape[1] == 3:
+            idx = a
+        if idx is not None and np.all(np.abs(idx) < 2**53) and np.all(idx == np.round(idx)):
+            return np.full(m, idx.shape[1], np.int64), (idx.astype(np.int64) - base).ravel()
+    # slow path: mixed polygon sizes, or an error to locate
+    counts = np.empty(m, np.int64)
+    flat: list[int] = []
+    for r, (row, line) in enumerate(zip(rows, nums)):
+        toks = row.split()
+        if counted:
+            try:
+                k = _parse_int(toks[0])
+            except ValueError:
+                raise _err(name, f"line {line}: face vertex count {toks[0]!r} is not an "
+                                 "integer") from None
+            if k < 3:
+                raise _err(name, f"line {line}: a face needs at least 3 vertices, found {k}")
+            if len(toks) < k + 1:
+                raise _err(name, f"line {line}: face announces {k} vertices but lists only "
+                                 f"{len(toks) - 1}: {row.strip()!r}")
+            idx = toks[1:k + 1]
+        else:
+            if len(toks) != 3:
+                raise _err(name, f"line {line}: a triangle needs exactly 3 vertex indices, "
+                                 f"found {len(toks)}: {row.strip()!r}")
+            idx, k = toks, 3
+        try:
+            flat.extend(_parse_int(t) - base for t in idx)
+        except ValueError:
+            bad = next(t for t in idx if not _is_int(t))
+            raise _err(name, f"line {line}: vertex index {bad!r} is not an integer") from None
+        counts[r] = k
+    return counts, np.asarray(flat, dtype=np.int64)
+
+
+def _is_int(tok: str) -> bool:
+    try:
+        _parse_int(tok)
+        return True
+    except ValueError:
+        return False
+
+
+def _repr_rows(v: np.ndarray, prefix: str = "") -> str:
+    """One ``x y z`` line per row, floats in shortest round-trip (``repr``) form."""
+    return "".join(f"{prefix}{x!r} {y!r} {z!r}\n" for x, y, z in v.tolist())
+
+
+def _int_rows(f: np.ndarray, prefix: str = "") -> str:
+    return "".join(f"{prefix}{a} {b} {c}\n" for a, b, c in f.tolist())
+
+
+def _truncated(name: str, what: str, expected: int, found: int, total: str) -> MeshFormatError:
+    return _err(name, f"file is truncated: {total} but only {found} of the {expected} {what} "
+                      "lines are present")
+
+
+# --------------------------------------------------------------------------- OFF
+_OFF_HEADER = re.compile(r"(ST)?C?N?OFF")
+
+
+def _parse_off(data: bytes, name: str) -> RawShape:
+    content, nums = _content_lines(_decode(data))
+    if not content:
+        raise _err(name, "file is empty (no data besides comments and blank lines)")
+    head = content[0].split()
+    kw = head[0]
+    if not _OFF_HEADER.fullmatch(kw):
+        if kw.endswith("OFF") and kw[:-3] and set(kw[:-3]) <= set("STCN4n"):
+            raise _err(name, f"unsupported OFF variant {kw!r} (only 3-D OFF is read)")
+        raise _err(name, f"bad header: expected 'OFF' on line {nums[0]}, "
+                         f"found {content[0].strip()[:40]!r}")
+    if len(head) > 1 and head[1].upper() == "BINARY":
+        raise _err(name, "binary OFF is not supported; convert it to text OFF, PLY or STL")
+    i = 1
+    counts_toks, counts_line = head[1:], nums[0]
+    if not counts_toks:
+        if len(content) < 2:
+            raise _err(name, "bad header: file ends after 'OFF', the vertex/face counts are "
+                             "missing")
+        counts_toks, counts_line, i = content[1].split(), nums[1], 2
+    try:
+        cnt = [int(t) for t in counts_toks]
+    except ValueError:
+        cnt = []
+    if len(cnt) not in (2, 3) or min(cnt) < 0:
+        raise _err(name, f"bad header: line {counts_line} should hold 'n_vertices n_faces "
+                         f"[n_edges]' (non-negative integers), found {' '.join(counts_toks)!r}")
+    nv, nf = cnt[0], cnt[1]
+    if nv == 0:
+        raise _err(name, "header announces 0 vertices: the file holds no shape")
+    total = f"the header announces {nv} vertices and {nf} faces"
+    have = len(content) - i
+    if have < nv:
+        raise _truncated(name, "vertex", nv, have, total)
+    if have < nv + nf:
+        raise _truncated(name, "face", nf, have - nv, total)
+    if have > nv + nf:
+        raise _err(name, f"{total} but the file has {have - nv - nf} more non-comment lines "
+                         f"(first at line {nums[i + nv + nf]}); wrong counts in the header?")
+    vrows, vnums = content[i:i + nv], nums[i:i + nv]
+    vertices = _float_rows(vrows, vnums, name, "vertex", 3, exact=False)
+    frows, fnums = content[i + nv:], nums[i + nv:]
+    counts, flat = _polygon_rows(frows, fnums, name, counted=True, base=0) if nf else (None, None)
+    return RawShape(vertices, counts, flat, 0, name, name, vnums, fnums)
+
+
+def _format_off(shape: PointCloud, name: str) -> bytes:
+    v = shape.vertices
+    f = shape.faces if isinstance(shape, Mesh) else np.empty((0, 3), np.int64)
+    return (f"OFF\n{len(v)} {len(f)} 0\n" + _repr_rows(v) + _int_rows(f, "3 ")).encode()
+
+
+# --------------------------------------------------------------------------- OBJ
+_OBJ_IGNORED = {"vt", "vn", "vp", "g", "o", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg",
+                "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp",
+                "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "maplib", "usemap",
+                "shadow_obj", "trace_obj", "ctech", "stech"}
+
+
+def _parse_obj(data: bytes, name: str) -> RawShape:
+    content, nums = _content_lines(_decode(data))
+    if not content:
+        raise _err(name, "file is empty (no data besides comments and blank lines)")
+    vrows: list[str] = []
+    vnums: list[int] = []
+    frows: list[str] = []
+    fnums: list[int] = []
+    fseen: list[int] = []  # vertices defined before each face (for negative indices)
+    unknown: dict[str, int] = {}
+    for row, line in zip(content, nums):
+        kw, *more = row.split(None, 1)
+        rest = more[0] if more else ""
+        if kw == "v":
+            vrows.append(rest)
+            vnums.append(line)
+        elif kw == "f":
+            frows.append(rest)
+            fnums.append(line)
+            fseen.append(len(vrows))
+        elif kw not in _OBJ_IGNORED:
+            unknown.setdefault(kw, line)
+    if not vrows:
+        hint = f" (first unknown statement {next(iter(unknown))[:20]!r} at line " \
+               f"{next(iter(unknown.values()))})" if unknown else ""
+        raise _err(name, f"no vertices: the file has no 'v' lines; is it really OBJ?{hint}")
+    if unknown:
+        logger.debug("%s: ignored OBJ statements %s", name, sorted(unknown))
+    vertices = _float_rows(vrows, vnums, name, "vertex", 3, exact=False)
+    if not frows:
+        return RawShape(vertices, None, None, 1, name, name, vnums, None)
+    # fast path: plain 'f a b c' rows with positive indices and equal sizes
+    if not any("/" in r or "-" in r for r in frows):
+        a = _loadtxt(frows, np.int64)
+        if a is not None and a.shape[1] >= 3 and a.min() > 0:
+            return RawShape(vertices, np.full(len(a), a.shape[1], np.int64), (a - 1).ravel(),
+                            1, name, name, vnums, fnums)
+    counts = np.empty(len(frows), np.int64)
+    flat: list[int] = []
+    for r, (row, line, seen) in enumerate(zip(frows, fnums, fseen)):
+        toks = row.split()
+        if len(toks) < 3:
+            raise _err(name, f"line {line}: a face needs at least 3 vertices, found {len(toks)}")
+        for tok in toks:
+            head = tok.partition("/")[0]
+            try:
+                i = int(head)
+            except ValueError:
+                raise _err(name, f"line {line}: vertex reference {tok!r} is not an "
+                                 "integer") from None
+            if i == 0:
+                raise _err(name, f"line {line}: vertex index 0 is invalid (OBJ indices start at 1)")
+            if i < 0:
+                if seen + i < 0:
+                    raise _err(name, f"line {line}: relative vertex index {i} points before the "
+                                     f"first vertex (only {seen} vertices defined so far)")
+                flat.append(seen + i)
+            else:
+                flat.append(i - 1)
+        counts[r] = len(toks)
+    return RawShape(vertices, counts, np.asarray(flat, np.int64), 1, name, name, vnums, fnums)
+
+
+def _format_obj(shape: PointCloud, name: str) -> bytes:
+    out = "# written by gromov\n" + _repr_rows(shape.vertices, "v ")
+    if isinstance(shape, Mesh):
+        out += _int_rows(shape.faces + 1, "f ")
+    return out.encode()
+
+
+# --------------------------------------------------------------------------- PLY
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+              "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+              "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+              "float64": "f8"}
+_STRUCT = {"i1": "b", "u1": "B", "i2": "h", "u2": "H", "i4": "i", "u4": "I", "f4": "f", "f8": "d"}
+
+
+@dataclass
+class _PlyProp:
+    name: str
+    dtype: str               # item type ("f4", "i4", ...)
+    count_dtype: str | None  # list length type, None for a scalar property
+
+
+@dataclass
+class _PlyElement:
+    name: str
+    count: int
+    props: list[_PlyProp]
+
+
+def _ply_header(data: bytes, name: str) -> tuple[str, list[_PlyElement], int]:
+    first = data[:4]
+    if first != b"ply\n" and data[:5] != b"ply\r\n":
+        raise _err(name, f"bad header: a PLY file starts with 'ply', found {data[:10]!r}")
+    end = re.search(rb"^end_header[ \t]*\r?$", data, re.MULTILINE)
+    if end is None:
+        raise _err(name, "bad header: no 'end_header' line (file truncated in its header?)")
+    body = data.find(b"\n", end.end())
+    body = len(data) if body < 0 else body + 1
+    lines = data[:end.start()].decode("ascii", errors="replace").splitlines()
+    fmt = None
+    elements: list[_PlyElement] = []
+    for ln, raw in enumerate(lines[1:], 2):
+        toks = raw.split()
+        if not toks or toks[0] in ("comment", "obj_info"):
+            continue
+        bad = _err(name, f"bad header line {ln}: {raw.strip()!r}")
+        if toks[0] == "format":
+            if len(toks) != 3 or toks[1] not in ("ascii", "binary_little_endian",
+                                                  "binary_big_endian"):
+                raise bad
+            fmt = toks[1]
+        elif toks[0] == "element":
+            if len(toks) != 3 or not toks[2].isdigit():
+                raise bad
+            elements.append(_PlyElement(toks[1], int(toks[2]), []))
+        elif toks[0] == "property":
+            if not elements:
+                raise bad
+            if len(toks) == 3 and toks[1] in _PLY_TYPES:
+                elements[-1].props.append(_PlyProp(toks[2], _PLY_TYPES[toks[1]], None))
+            elif len(toks) == 5 and toks[1] == "list" and toks[2] in _PLY_TYPES \
+                    and toks[3] in _PLY_TYPES and _PLY_TYPES[toks[2]][0] in "iu":
+                elements[-1].props.append(_PlyProp(toks[4], _PLY_TYPES[toks[3]],
+                                                   _PLY_TYPES[toks[2]]))
+            else:
+                raise bad
+        else:
+            raise bad
+    if fmt is None:
+        raise _err(name, "bad header: no 'format' line")
+    return fmt, elements, body
+
+
+# A decoded element: property name -> scalar column, or (counts, flat) for a list property.
+_Columns = dict[str, "np.ndarray | tuple[np.ndarray, np.ndarray]"]
+
+
+def _ply_ascii_generic(rows, nums, el: _PlyElement, name: str) -> _Columns:
+    scal: dict[str, list[float]] = {p.name: [] for p in el.props if p.count_dtype is None}
+    lists: dict[str, tuple[list[int], list[float]]] = {
+        p.name: ([], []) for p in el.props if p.count_dtype is not None}
+    for row, line in zip(rows, nums):
+        toks = row.split()
+        pos = 0
+        try:
+            for p in el.props:
+                if p.count_dtype is None:
+                    scal[p.name].append(float(toks[pos]))
+                    pos += 1
+                else:
+                    k = _parse_int(toks[pos])
+                    if k < 0:
+                        raise ValueError
+                    lists[p.name][0].append(k)
+                    lists[p.name][1].extend(float(t) for t in toks[pos + 1:pos + 1 + k])
+                    if pos + 1 + k > len(toks):
+                        raise IndexError
+                    pos += 1 + k
+        except (ValueError, IndexError):
+            raise _err(name, f"line {line}: malformed {el.name!r} record {row.strip()!r}") from None
+        if pos != len(toks):
+            raise _err(name, f"line {line}: {el.name!r} record has {len(toks) - pos} extra "
+                             f"values: {row.strip()!r}")
+    cols: _Columns = {k: np.asarray(v) for k, v in scal.items()}
+    cols.update({k: (np.asarray(c, np.int64), np.asarray(f)) for k, (c, f) in lists.items()})
+    return cols
+
+
+def _ply_ascii(body: bytes, elements: list[_PlyElement], name: str, header_lines: int,
+               wanted: set[str]) -> tuple[dict[str, _Columns], dict[str, list[int]]]:
+    content, nums = _content_lines(_decode(body), comment=None)
+    nums = [n + header_lines for n in nums]
+    out: dict[str, _Columns] = {}
+    lines_of: dict[str, list[int]] = {}
+    pos = 0
+    total = ", ".join(f"{e.count} {e.name}" for e in elements)
+    for el in elements:
+        rows, rnums = content[pos:pos + el.count], nums[pos:pos + el.count]
+        if len(rows) < el.count:
+            raise _err(name, f"file is truncated: the header announces {total} records but only "
+                             f"{len(rows)} of the {el.count} {el.name!r} lines are present")
+        pos += el.count
+        if el.name not in wanted or el.count == 0:
+            continue
+        lines_of[el.name] = rnums
+        nlist = sum(p.count_dtype is not None for p in el.props)
+        if nlist == 0:
+            a = _float_rows(rows, rnums, name, f"{el.name!r} record", len(el.props), exact=True)
+            out[el.name] = {p.name: a[:, j] for j, p in enumerate(el.props)}
+        elif nlist == 1 and el.props[0].count_dtype is not None and el.name == "face":
+            a = _loadtxt(rows)
+            k = None if a is None else a[:, 0]
+            if a is not None and np.all(k == k[0]) and a.shape[1] == int(k[0]) + len(el.props):
+                counts, flat = _polygon_rows(rows, rnums, name, counted=True, base=0)
+                out[el.name] = {el.props[0].name: (counts, flat)}
+            else:
+                out[el.name] = _ply_ascii_generic(rows, rnums, el, name)
+        else:
+            out[el.name] = _ply_ascii_generic(rows, rnums, el, name)
+    if pos < len(content):
+        raise _err(name, f"the header announces {total} records but the file has "
+                         f"{len(content) - pos} more lines (first at line {nums[pos]})")
+    return out, lines_of
+
+
+def _ply_binary(body: bytes, elements: list[_PlyElement], endian: str, name: str,
+                wanted: set[str]) -> dict[str, _Columns]:
+    out: dict[str, _Columns] = {}
+    off = 0
+    total = ", ".join(f"{e.count} {e.name}" for e in elements)
+    trunc = _err(name, f"file is truncated: the header announces {total} records but the "
+                       "binary data ends early")
+    for el in elements:
+        if el.count == 0:
+            continue
+        lists = [p for p in el.props if p.count_dtype is not None]
+        # fast path: fixed layout (no lists, or every list as long as in the first record)
+        fields, pos, ks = [], off, []
+        try:
+            for j, p in enumerate(el.props):
+                if p.count_dtype is None:
+                    fields.append((f"p{j}", endian + p.dtype))
+                    pos += np.dtype(p.dtype).itemsize
+                else:
+                    (k,) = struct.unpack_from(endian + _STRUCT[p.count_dtype], body, pos)
+                    fields.append((f"n{j}", endian + p.count_dtype))
+                    fields.append((f"p{j}", endian + p.dtype, (k,)))
+                    pos += np.dtype(p.count_dtype).itemsize + k * np.dtype(p.dtype).itemsize
+                    ks.append(k)
+        except struct.error:
+            raise trunc from None
+        dt = np.dtype(fields)
+        arr = None
+        if off + el.count * dt.itemsize <= len(body):
+            arr = np.frombuffer(body, dt, el.count, off)
+            if any(np.any(arr[f"n{j}"] != arr[f"n{j}"][0])
+                   for j, p in enumerate(el.props) if p.count_dtype is not None):
+                arr = None
+        if arr is not None:
+            off += el.count * dt.itemsize
+            if el.name in wanted:
+                cols: _Columns = {}
+                for j, p in enumerate(el.props):
+                    if p.count_dtype is None:
+                        cols[p.name] = arr[f"p{j}"]
+                    else:
+                        k = arr[f"p{j}"].shape[1] if arr[f"p{j}"].ndim == 2 else 1
+                        cols[p.name] = (np.full(el.count, k, np.int64),
+                                        arr[f"p{j}"].reshape(el.count, -1).ravel())
+                out[el.name] = cols
+            continue
+        if not lists:
+            raise trunc
+        # slow path: variable-length lists, record by record
+        scal: dict[str, list] = {p.name: [] for p in el.props if p.count_dtype is None}
+        lst: dict[str, tuple[list[int], list]] = {p.name: ([], []) for p in lists}
+        fmts = {p.name: (struct.Struct(endian + _STRUCT[p.dtype]),
+                         None if p.count_dtype is None else
+                         struct.Struct(endian + _STRUCT[p.count_dtype])) for p in el.props}
+        try:
+            for _ in range(el.count):
+                for p in el.props:
+                    item, cnt = fmts[p.name]
+                    if cnt is None:
+                        scal[p.name].append(item.unpack_from(body, off)[0])
+                        off += item.size
+                    else:
+                        (k,) = cnt.unpack_from(body, off)
+                        off += cnt.size
+                        vals = struct.unpack_from(f"{endian}{k}{_STRUCT[p.dtype]}", body, off)
+                        off += k * item.size
+                        lst[p.name][0].append(k)
+                        lst[p.name][1].extend(vals)
+        except struct.error:
+            raise trunc from None
+        if el.name in wanted:
+            cols = {k: np.asarray(v) for k, v in scal.items()}
+            cols.update({k: (np.asarray(c, np.int64), np.asarray(f)) for k, (c, f) in lst.items()})
+            out[el.name] = cols
+    extra = body[off:]
+    if extra.strip():
+        raise _err(name, f"the header announces {total} records but {len(extra)} bytes of data "
+                         "follow them; wrong counts in the header?")
+    return out
+
+
+def _parse_ply(data: bytes, name: str) -> RawShape:
+    fmt, elements, body = _ply_header(data, name)
+    by_name = {e.name: e for e in elements}
+    vert = by_name.get("vertex")
+    if vert is None or vert.count == 0:
+        raise _err(name, "the PLY file has no vertices (no or empty 'vertex' element)")
+    have = {p.name for p in vert.props if p.count_dtype is None}
+    if not {"x", "y", "z"} <= have:
+        raise _err(name, f"the 'vertex' element lacks x, y, z properties (has {sorted(have)})")
+    face = by_name.get("face")
+    index_prop = None
+    if face is not None and face.count:
+        index_prop = next((p.name for p in face.props if p.count_dtype is not None
+                           and p.name in ("vertex_indices", "vertex_index")), None)
+        if index_prop is None:
+            raise _err(name, "the 'face' element has no 'vertex_indices' list property")
+    wanted = {"vertex", "face"}
+    vlines = flines = None
+    if fmt == "ascii":
+        header_lines = data[:body].count(b"\n")
+        cols, lines_of = _ply_ascii(data[body:], elements, name, header_lines, wanted)
+        vlines, flines = lines_of.get("vertex"), lines_of.get("face")
+    else:
+        cols = _ply_binary(data[body:], elements, "<" if fmt == "binary_little_endian" else ">",
+                           name, wanted)
+    vc = cols["vertex"]
+    # ASCII values are cast to the declared type, so ASCII and binary PLY read alike
+    decl = {p.name: p.dtype for p in vert.props}
+    vertices = np.column_stack([np.asarray(vc[c]).astype(decl[c]).astype(np.float64)
+                                for c in "xyz"])
+    if index_prop is None:
+        return RawShape(vertices, None, None, 0, name, name, vlines, None)
+    counts, flat = cols["face"][index_prop]
+    if len(counts) and counts.min() < 3:
+        bad = int(np.argmax(counts < 3))
+        where = f"line {flines[bad]}" if flines else f"face {bad}"
+        raise _err(name, f"{where}: a face needs at least 3 vertices, found {int(counts[bad])}")
+    flat = np.asarray(flat)
+    if flat.dtype.kind == "f":
+        if not (np.isfinite(flat).all() and np.all(flat == np.round(flat))):
+            raise _err(name, "face vertex indices are not integers")
+    return RawShape(vertices, counts, flat.astype(np.int64), 0, name, name, vlines, flines)
+
+
+def _format_ply(shape: PointCloud, name: str) -> bytes:
+    v = np.ascontiguousarray(shape.vertices, dtype="<f8")
+    head = ["ply", "format binary_little_endian 1.0", "comment written by gromov",
+            f"element vertex {len(v)}", "property double x", "property double y",
+            "property double z"]
+    out = [v.tobytes()]
+    if isinstance(shape, Mesh):
+        head += [f"element face {shape.n_faces}", "property list uchar int vertex_indices"]
+        rec = np.empty(shape.n_faces, np.dtype([("n", "u1"), ("i", "<i4", (3,))]))
+        rec["n"] = 3
+        rec["i"] = shape.faces
+        out.append(rec.tobytes())
+    return ("\n".join(head + ["end_header"]) + "\n").encode("ascii") + b"".join(out)
+
+
+# --------------------------------------------------------------------------- STL
+_STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+
+
+def _parse_stl(data: bytes, name: str) -> RawShape:
+    n_bin = struct.unpack_from("<I", data, 80)[0] if len(data) >= 84 else -1
+    if n_bin >= 0 and len(data) == 84 + 50 * n_bin:
+        corners = np.frombuffer(data, _STL_RECORD, n_bin, 84)["v"].reshape(-1, 3)
+    elif data.lstrip()[:5].lower() == b"solid":
+        corners = _parse_stl_ascii(data, name)
+    elif n_bin >= 0:
+        raise _err(name, f"binary STL of wrong size: the header announces {n_bin} triangles "
+                         f"({84 + 50 * n_bin} bytes) but the file has {len(data)} bytes "
+                         "(truncated?)")
+    else:
+        raise _err(name, f"not an STL file: {len(data)} bytes is too short for binary STL and "
+                         "it does not start with 'solid'")
+    if len(corners) == 0:
+        raise _err(name, "the STL file holds no triangles")
+    # STL has no shared vertices: merge identical corners, numbered by first appearance
+    uniq, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    with np.errstate(invalid="ignore"):  # NaN bit patterns in damaged files: caught later
+        vertices = np.asarray(uniq[order], np.float64)
+    flat = rank[inverse.reshape(-1)].astype(np.int64)
+    logger.debug("%s: merged %d STL corners into %d vertices", name, len(corners), len(vertices))
+    return RawShape(vertices, np.full(len(flat) // 3, 3, np.int64), flat, 0, name, name)
+
+
+def _parse_stl_ascii(data: bytes, name: str) -> np.ndarray:
+    toks = np.array(_decode(data).lower().split())
+    n_facet = int(np.count_nonzero(toks == "facet"))
+    n_end = int(np.count_nonzero(toks == "endfacet"))
+    vpos = np.flatnonzero(toks == "vertex")
+    epos = np.flatnonzero(toks == "endsolid")
+    ended = len(epos) > 0 and (n_end == 0 or epos[-1] > np.flatnonzero(toks == "endfacet")[-1])
+    if n_facet != n_end or len(vpos) != 3 * n_facet or not ended:
+        raise _err(name, f"ASCII STL is truncated or malformed: {n_facet} 'facet', {n_end} "
+                         f"'endfacet' and {len(vpos)} 'vertex' statements"
+                         + ("" if ended else ", no final 'endsolid'"))
+    fpos = np.flatnonzero(toks == "facet")
+    if n_facet and np.any(np.bincount(np.searchsorted(fpos, vpos) - 1, minlength=n_facet) != 3):
+        raise _err(name, "ASCII STL facet without exactly 3 vertices")
+    if n_facet and vpos[-1] + 3 >= len(toks):
+        raise _err(name, "ASCII STL is truncated after its last 'vertex'")
+    try:
+        return toks[vpos[:, None] + np.arange(1, 4)].astype(np.float64).reshape(-1, 3)
+    except ValueError as exc:
+        raise _err(name, f"non-numeric vertex coordinate in ASCII STL ({exc})") from None
+
+
+def _format_stl(shape: PointCloud, name: str) -> bytes:
+    if not isinstance(shape, Mesh):
+        raise _err(name, "STL stores triangles only; it cannot hold a point cloud "
+                         "(use .ply, .off or .obj)")
+    rec = np.zeros(shape.n_faces, _STL_RECORD)
+    rec["normal"] = shape.face_normals
+    rec["v"] = shape.vertices[shape.faces]
+    return b"binary STL written by gromov".ljust(80, b" ") + \
+        struct.pack("<I", shape.n_faces) + rec.tobytes()
+
+
+# --------------------------------------------------------------------------- TOSCA .vert/.tri
+def _tosca_paths(path: Path, ext: str, gz: bool) -> tuple[Path, Path]:
+    """``(vert, tri)`` paths of the pair that ``path`` belongs to."""
+    suffix = f".{ext}" + (".gz" if gz else "")
+    stem = path.name[:-len(suffix)] if path.name.lower().endswith(suffix) else \
+        path.name.removesuffix(".gz").rpartition(".")[0] or path.name
+    other = "tri" if ext == "vert" else "vert"
+    partner = path.with_name(f"{stem}.{other}" + (".gz" if gz else ""))
+    if not partner.exists():
+        alt = path.with_name(f"{stem}.{other}" + ("" if gz else ".gz"))
+        if alt.exists():
+            partner = alt
+    return (path, partner) if ext == "vert" else (partner, path)
+
+
+def _read_tosca(path: Path, gz: bool, ext: str) -> RawShape:
+    vpath, tpath = _tosca_paths(path, ext, gz)
+    partner = tpath if ext == "vert" else vpath
+    if not partner.exists():
+        raise MeshFileNotFoundError(
+            f"{path}: partner file {partner} not found (a TOSCA mesh is a .vert/.tri pair "
+            "with the same name)")
+    vname, tname = str(vpath), str(tpath)
+    vdata = _read_bytes(vpath, vpath.name.lower().endswith(".gz"))
+    vrows, vnums = _content_lines(_decode(vdata))
+    if not vrows:
+        raise _err(vname, "file is empty: a .vert file needs one 'x y z' line per vertex")
+    vertices = _float_rows(vrows, vnums, vname, "vertex", 3, exact=True)
+    tdata = _read_bytes(tpath, tpath.name.lower().endswith(".gz"), allow_empty=True)
+    trows, tnums = _content_lines(_decode(tdata))
+    if not trows:
+        logger.info("%s: no triangles, reading %s as a point cloud", tname, vname)
+        return RawShape(vertices, None, None, 1, vname, tname, vnums, None)
+    counts, flat = _polygon_rows(trows, tnums, tname, counted=False, base=1)
+    return RawShape(vertices, counts, flat, 1, vname, tname, vnums, tnums)
+
+
+def _write_tosca(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
+    if not isinstance(shape, Mesh):
+        raise _err(str(path), "a .vert/.tri pair needs triangles; save a point cloud as .ply, "
+                              ".off or .obj")
+    vpath, tpath = _tosca_paths(path, ext, gz)
+    _write_bytes(vpath, _repr_rows(shape.vertices).encode(), gz)
+    _write_bytes(tpath, _int_rows(shape.faces + 1).encode(), gz)
+
+
+# --------------------------------------------------------------------------- bytes <-> files
+def _read_bytes(path: Path, gz: bool, *, allow_empty: bool = False) -> bytes:
+    if path.is_dir():
+        raise _err(str(path), "is a directory, not a mesh file")
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise MeshFileNotFoundError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise _err(str(path), f"cannot read the file: {exc.strerror or exc}") from None
+    if gz:
+        if data[:2] != b"\x1f\x8b":
+            raise _err(str(path), "bad gzip data: the name ends in .gz but the file is not "
+                                  "gzip-compressed")
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError, zlib.error) as exc:
+            raise _err(str(path), f"bad gzip data ({exc})") from None
+    if not allow_empty and not data.strip():
+        raise _err(str(path), "file is empty" + (" after decompression" if gz else ""))
+    return data
+
+
+def _write_bytes(path: Path, data: bytes, gz: bool) -> None:
+    if gz:
+        data = gzip.compress(data, compresslevel=6, mtime=0)
+    path.write_bytes(data)
+
+
+def _bytes_reader(parse: Callable[[bytes, str], RawShape]) -> Callable[[Path, bool], RawShape]:
+    def read(path: Path, gz: bool) -> RawShape:
+        return parse(_read_bytes(path, gz), str(path))
+    return read
+
+
+def _bytes_writer(fmt: Callable[[PointCloud, str], bytes]
+                  ) -> Callable[[PointCloud, Path, bool], None]:
+    def write(shape: PointCloud, path: Path, gz: bool) -> None:
+        _write_bytes(path, fmt(shape, str(path)), gz)
+    return write
+
+
+# --------------------------------------------------------------------------- registry
+@dataclass(frozen=True)
+class FileFormat:
+    """One entry of :data:`FORMATS`.
+
+    Attributes
+    ----------
+    description : str
+    read : callable ``(path: Path, gzipped: bool) -> RawShape``
+        Reads the file (decompressing if ``gzipped``) into raw arrays; raises
+        :class:`~gromov.errors.MeshFormatError` naming the file on any problem.
+    write : callable ``(shape: PointCloud, path: Path, gzipped: bool) -> None``
+    """
+
+    description: str
+    read: Callable[[Path, bool], RawShape]
+    write: Callable[[PointCloud, Path, bool], None]
+
+
+#: Extension (lower case, no dot, without ``.gz``) -> :class:`FileFormat`.
+FORMATS: dict[str, FileFormat] = {
+    "off": FileFormat("Object File Format, text", _bytes_reader(_parse_off),
+                      _bytes_writer(_format_off)),
+    "obj": FileFormat("Wavefront OBJ", _bytes_reader(_parse_obj), _bytes_writer(_format_obj)),
+    "ply": FileFormat("Stanford PLY, ASCII or binary (written binary, float64)",
+                      _bytes_reader(_parse_ply), _bytes_writer(_format_ply)),
+    "stl": FileFormat("STL, ASCII or binary (written binary, float32)",
+                      _bytes_reader(_parse_stl), _bytes_writer(_format_stl)),
+    "vert": FileFormat("TOSCA .vert/.tri pair (1-based triangles)",
+                       lambda p, gz: _read_tosca(p, gz, "vert"),
+                       lambda s, p, gz: _write_tosca(s, p, gz, "vert")),
+    "tri": FileFormat("TOSCA .vert/.tri pair (1-based triangles)",
+                      lambda p, gz: _read_tosca(p, gz, "tri"),
+                      lambda s, p, gz: _write_tosca(s, p, gz, "tri")),
+}
+
+
+def _supported() -> str:
+    return ", ".join("." + e for e in FORMATS) + " (each optionally followed by .gz)"
+
+
+def _as_path(path) -> Path:
+    try:
+        return Path(os.fspath(path))
+    except TypeError:
+        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}") from None
+
+
+def _resolve(path: Path, file_type: str | None) -> tuple[str, bool]:
+    """``(format key, gzipped)`` from the file name, or from ``file_type`` when given."""
+    name = path.name.lower()
+    gz = name.endswith(".gz")
+    if file_type is not None:
+        ft = str(file_type).lower().lstrip(".")
+        if ft.endswith(".gz") or ft == "gz":
+            gz, ft = True, ft.removesuffix("gz").rstrip(".")
+        if ft not in FORMATS:
+            raise _err(str(path), f"unknown file_type {file_type!r}; supported: {_supported()}")
+        return ft, gz
+    stem = name[:-3] if gz else name
+    ext = stem.rpartition(".")[2] if "." in stem else ""
+    if ext not in FORMATS:
+        got = f"extension '.{ext}'" if ext else "no extension"
+        raise _err(str(path), f"unknown mesh format ({got}); supported: {_supported()}")
+    return ext, gz
+
+
+# --------------------------------------------------------------------------- validation
+def _finish(raw: RawShape, name: str, repair: bool) -> Mesh | PointCloud:
+    v = np.asarray(raw.vertices, np.float64)
+    if v.shape[0] == 0:
+        raise _err(raw.vertex_file, "the file holds no vertices")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        line = f" (line {raw.vertex_lines[i]})" if raw.vertex_lines is not None else ""
+        raise _err(raw.vertex_file, f"{int(bad.sum())} vertices have NaN or infinite "
+                                    f"coordinates, first vertex {i}{line}: {v[i].tolist()}")
+    if raw.counts is None or len(raw.counts) == 0:
+        logger.debug("%s: %d points, no faces: point cloud", name, len(v))
+        return PointCloud(v)
+    counts, flat = np.asarray(raw.counts, np.int64), np.asarray(raw.flat, np.int64)
+    n = len(v)
+    out = (flat < 0) | (flat >= n)
+    if out.any():
+        pos = int(np.argmax(out))
+        face = int(np.searchsorted(np.cumsum(counts), pos, side="right"))
+        line = f" (line {raw.face_lines[face]})" if raw.face_lines is not None else ""
+        value = int(flat[pos]) + raw.base
+        kind = "negative" if flat[pos] < 0 else "out-of-range"
+        raise _err(raw.face_file, f"face {face}{line} has {kind} vertex index {value}: "
+                                  f"valid indices are {raw.base}..{n - 1 + raw.base} "
+                                  f"({n} vertices, {raw.base}-based); {int(out.sum())} bad "
+                                  "indices in all")
+    if np.all(counts == 3):
+        tris = flat.reshape(-1, 3)
+    else:
+        tris = _fan(counts, flat)
+        n_poly = int(np.count_nonzero(counts > 3))
+        warnings.warn(f"{raw.face_file}: triangulated {n_poly} polygon(s) with more than 3 "
+                      f"vertices as triangle fans ({len(counts)} faces -> {len(tris)} triangles)",
+                      GromovWarning, stacklevel=3)
+    try:
+        shape = Mesh(v, tris)
+        if repair:
+            shape, _ = _mesh.repair(shape, source=name)
+    except MeshFormatError:
+        raise
+    except MeshError as exc:
+        raise _err(name, str(exc)) from None
+    if logger.isEnabledFor(logging.INFO):
+        nm = len(shape.nonmanifold_edges)
+        if nm:
+            logger.info("%s: %d non-manifold edges (kept)", name, nm)
+        if shape.n_components > 1:
+            logger.info("%s: %d connected components", name, shape.n_components)
+    return shape
+
+
+def _fan(counts: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """Fan triangulation ``(p0, pj, pj+1)`` of each polygon, polygons kept in order."""
+    starts = np.cumsum(counts) - counts
+    ntri = counts - 2
+    poly = np.repeat(np.arange(len(counts)), ntri)
+    j = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
+    s = starts[poly]
+    return np.stack([flat[s], flat[s + j], flat[s + j + 1]], axis=1)
+
+
+# --------------------------------------------------------------------------- public API
+def load(path: str | os.PathLike, *, repair: bool = True,
+         file_type: str | None = None) -> Mesh | PointCloud:
+    """Read a triangle mesh or point cloud from a file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.off``, ``.obj``, ``.ply``, ``.stl``, ``.vert`` or ``.tri`` (see :data:`FORMATS`),
+        optionally gzip-compressed with a trailing ``.gz`` (``cat0.off.gz``). For a TOSCA
+        pair, either ``cat0.vert`` or ``cat0.tri`` loads both files.
+    repair : bool, default True
+        Run :func:`gromov.mesh.repair` on the result: merge duplicate vertices, drop
+        degenerate and repeated faces and unreferenced vertices, each with a
+        :class:`~gromov.errors.GromovWarning`. The returned mesh's ``input_ids`` give, for
+        each vertex, its 0-based index in the file. Non-manifold edges and multiple
+        components are kept and only logged at INFO level.
+    file_type : str, optional
+        Format to use instead of the one implied by the extension, e.g. ``"off"`` or
+        ``"off.gz"``. A name ending in ``.gz`` is always decompressed.
+
+    Returns
+    -------
+    Mesh or PointCloud
+        A :class:`~gromov.mesh.PointCloud` when the file has vertices but no faces.
+        Vertices are in file order (``input_ids`` is ``arange(n)`` unless ``repair``
+        removed something); polygons with more than 3 vertices are fan-triangulated with
+        a :class:`~gromov.errors.GromovWarning`.
+
+    Raises
+    ------
+    MeshFileNotFoundError
+        The file, or the partner of a ``.vert``/``.tri`` file, does not exist (also a
+        ``FileNotFoundError``).
+    MeshFormatError
+        Anything else wrong with the file: a directory, unknown extension, empty file,
+        bad header, truncated data, non-numeric values, NaN/inf coordinates, negative or
+        out-of-range face indices, bad gzip data, or no triangle left after repair. The
+        message starts with the file name and says where the problem is.
+    TypeError
+        ``path`` is not a str or path-like.
+
+    Examples
+    --------
+    >>> cat = load("tosca/cat0.off.gz")                       # doctest: +SKIP
+    >>> cat.n_vertices, cat.input_ids[:3]                     # doctest: +SKIP
+    (27894, array([0, 1, 2]))
+    """
+    p = _as_path(path)
+    key, gz = _resolve(p, file_type)
+    if p.is_dir():
+        raise _err(str(p), "is a directory, not a mesh file")
+    if not p.exists():
+        raise MeshFileNotFoundError(f"{p}: no such file")
+    name = str(p)
+    try:
+        raw = FORMATS[key].read(p, gz)
+        return _finish(raw, name, repair)
+    except MeshFormatError:
+        raise
+    except MeshError as exc:
+        raise _err(name, str(exc)) from None
+    except _PARSE_ERRORS as exc:
+        raise _err(name, f"cannot parse as {key.upper()}: {type(exc).__name__}: {exc}") from None
+
+
+def save(shape: Mesh | PointCloud, path: str | os.PathLike, *,
+         file_type: str | None = None) -> None:
+    """Write a mesh or point cloud; the format follows the extension.
+
+    Parameters
+    ----------
+    shape : Mesh or PointCloud
+        Written with vertices and faces in their current order (``input_ids`` are not
+        stored). Point clouds can be written as OFF, OBJ and PLY.
+    path : str or os.PathLike
+        Output file; a trailing ``.gz`` gzip-compresses it. ``x.vert`` or ``x.tri``
+        writes both ``x.vert`` and ``x.tri`` (compressed alike).
+    file_type : str, optional
+        Format to use instead of the one implied by the extension.
+
+    Notes
+    -----
+    Text formats (OFF, OBJ, ``.vert``) write coordinates in shortest round-trip
+    (``repr``) form and PLY writes float64, so :func:`load` gives back identical arrays.
+    STL is written binary, float32, and has no vertex numbering: reading it back merges
+    corners and numbers vertices by first appearance in the faces.
+
+    Raises
+    ------
+    TypeError
+        ``shape`` is not a :class:`~gromov.mesh.PointCloud`/:class:`~gromov.mesh.Mesh`.
+    MeshFormatError
+        Unknown extension, or a point cloud given for a triangles-only format (STL,
+        ``.vert``/``.tri``).
+    OSError
+        The file cannot be written.
+    """
+    if not isinstance(shape, PointCloud):
+        raise TypeError(f"shape must be a gromov Mesh or PointCloud, got {type(shape).__name__}")
+    p = _as_path(path)
+    key, gz = _resolve(p, file_type)
+    FORMATS[key].write(shape, p, gz)
+    logger.debug("wrote %r to %s", shape, p)

@@ -1,0 +1,143 @@
+"""The interface every intrinsic (or extrinsic) metric implements."""
+
+from __future__ import annotations
+
+import logging
+from abc import ABC, abstractmethod
+from typing import Callable
+
+import numpy as np
+
+from ..errors import MetricError
+from ..mesh import Mesh, PointCloud
+
+__all__ = ["MetricSolver", "check_sources", "check_shape"]
+
+logger = logging.getLogger(__name__)
+
+
+def check_shape(shape, *, need_faces: bool = False, metric: str = "") -> PointCloud:
+    """Accept a Mesh or PointCloud (an ``(n, 3)`` array is taken as a point cloud)."""
+    if isinstance(shape, PointCloud):
+        if need_faces and not isinstance(shape, Mesh):
+            raise MetricError(f"{metric} needs a triangle mesh, got a point cloud")
+        return shape
+    if isinstance(shape, np.ndarray) and not need_faces:
+        return PointCloud(shape)
+    raise TypeError(f"expected a gromov Mesh or PointCloud, got {type(shape).__name__}")
+
+
+def check_sources(sources, n: int) -> np.ndarray:
+    """Coerce source vertex indices to a non-empty 1-D int64 array in ``[0, n)``."""
+    s = np.atleast_1d(np.asarray(sources))
+    if s.size == 0:
+        raise ValueError("sources is empty: give at least one vertex index")
+    if s.ndim != 1:
+        raise ValueError(f"sources must be a 1-D array of vertex indices, got shape {s.shape}")
+    if not np.issubdtype(s.dtype, np.integer):
+        raise ValueError(f"sources must be integer vertex indices, got dtype {s.dtype}")
+    if s.min() < 0 or s.max() >= n:
+        raise ValueError(f"sources must lie in [0, {n}), got values in [{s.min()}, {s.max()}]")
+    return s.astype(np.int64)
+
+
+class MetricSolver(ABC):
+    """A distance on the vertices of one shape, with the per-shape work done once.
+
+    Subclasses implement :meth:`from_sources`; :meth:`pairwise` (cached) and
+    :meth:`diameter` follow from it. The matcher only uses this interface, so it does
+    not care which metric it got.
+
+    Attributes
+    ----------
+    name : str
+        ``"geodesic"``, ``"diffusion"`` or ``"euclidean"``.
+    shape : Mesh or PointCloud
+    """
+
+    name: str = ""
+    #: whether rows from :meth:`from_sources` are exactly symmetric (d(x,y) == d(y,x)), so
+    #: the cached pairwise matrix can answer them without changing any result
+    symmetric_rows: bool = False
+
+    def __init__(self, shape: PointCloud):
+        self.shape = shape
+        self._pairwise: np.ndarray | None = None
+
+    @property
+    def n_vertices(self) -> int:
+        return self.shape.n_vertices
+
+    @abstractmethod
+    def _rows(self, sources: np.ndarray) -> np.ndarray:
+        """Distances ``(len(sources), n)`` from each validated source."""
+
+    def from_sources(self, sources) -> np.ndarray:
+        """Distances from each source to every vertex.
+
+        Parameters
+        ----------
+        sources : array_like of int, shape (k,)
+
+        Returns
+        -------
+        ndarray, shape (k, n)
+            Row ``i`` holds the distances from ``sources[i]``; ``inf`` where a vertex
+            cannot be reached (another connected component, for path metrics).
+        """
+        s = check_sources(sources, self.n_vertices)
+        if self._pairwise is not None and self.symmetric_rows:
+            return self._pairwise[s]
+        return self._rows(s)
+
+    def pairwise(self, *, progress: Callable[[int], None] | None = None,
+                 chunk: int = 256) -> np.ndarray:
+        """The dense ``(n, n)`` distance matrix, symmetrised ``(D + D^T)/2`` with zero diagonal.
+
+        Computed once and cached (read-only). ``progress(k)`` is called after each chunk of
+        ``k`` rows, e.g. with a progress bar's ``update``.
+        """
+        if self._pairwise is None:
+            n = self.n_vertices
+            d = np.empty((n, n))
+            for start in range(0, n, chunk):
+                stop = min(n, start + chunk)
+                d[start:stop] = self._rows(np.arange(start, stop))
+                if progress is not None:
+                    progress(stop - start)
+            d = 0.5 * (d + d.T)
+            np.fill_diagonal(d, 0.0)
+            d.flags.writeable = False
+            self._pairwise = d
+        return self._pairwise
+
+    def submatrix(self, indices) -> np.ndarray:
+        """Distances between the given vertices, ``(k, k)``, symmetrised with zero diagonal."""
+        s = check_sources(indices, self.n_vertices)
+        d = self.from_sources(s)[:, s]
+        d = 0.5 * (d + d.T)
+        np.fill_diagonal(d, 0.0)
+        return d
+
+    def diameter(self, *, exact: bool = False) -> float:
+        """Largest finite distance between two vertices.
+
+        ``exact=False`` (default) uses the double sweep: farthest vertex from vertex 0,
+        then the farthest from it, iterated until it stops growing (a lower bound that
+        is tight on most shapes; exact when the pairwise matrix is already cached).
+        """
+        if exact:
+            d = self.pairwise()
+            return float(d[np.isfinite(d)].max())
+        best, cur = 0.0, 0
+        for _ in range(10):
+            row = self.from_sources([cur])[0]
+            row = np.where(np.isfinite(row), row, -np.inf)
+            nxt = int(np.argmax(row))
+            if row[nxt] <= best * (1 + 1e-12):
+                break
+            best, cur = float(row[nxt]), nxt
+        return best
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(n_vertices={self.n_vertices})"

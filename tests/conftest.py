@@ -1,0 +1,51 @@
+"""Shared fixtures: the research data directory and working meshes made from it.
+
+The data are read from ``$GROMOV_DATA`` or ``../shared/data`` beside the repository;
+they are never copied into the repository.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def data_root() -> Path:
+    env = os.environ.get("GROMOV_DATA")
+    return Path(env) if env else REPO.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def data_dir() -> Path:
+    root = data_root()
+    if not (root / "tosca").is_dir():
+        pytest.skip(f"research data not found at {root} (set GROMOV_DATA)")
+    return root
+
+
+@pytest.fixture(scope="session")
+def tosca_cat0(data_dir):
+    import gromov
+
+    return gromov.load(data_dir / "tosca" / "cat0.off.gz")
+
+
+@pytest.fixture(scope="session")
+def cat_working(tosca_cat0):
+    """cat0 simplified to about 3,000 vertices (the paper's working size)."""
+    import gromov
+
+    return gromov.simplify(tosca_cat0, 3000)
+
+
+def pytest_collection_modifyitems(config, items):
+    if os.environ.get("GROMOV_SLOW") == "1":
+        return
+    skip = pytest.mark.skip(reason="slow: full-resolution data; run with GROMOV_SLOW=1")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)

@@ -1,0 +1,137 @@
+"""Diffusion distances: eq. (4) of Bronstein et al. 2010 by definition and fast, metric facts,
+resolution independence of the heat-kernel variant."""
+
+import numpy as np
+import pytest
+
+from gromov import MetricError, PointCloud
+from gromov.metrics import (
+    GraphDiffusionSolver,
+    HeatDiffusionSolver,
+    affinity,
+    brute_force_diffusion_distance,
+    diffusion_operator,
+    metric_solver,
+)
+from gromov.shapes import grid, icosphere, rolled_grid
+
+
+@pytest.mark.parametrize("kernel, density", [("connectivity", False), ("connectivity", True),
+                                             ("gaussian", False)])
+@pytest.mark.parametrize("shape", [icosphere(3), grid(25, 13)], ids=["sphere", "grid"])
+def test_fast_equals_brute_force_eq4(shape, kernel, density):
+    s = GraphDiffusionSolver(shape, kernel=kernel, density_normalize=density, m=20,
+                             dense_below=0)  # force the truncated spectral path
+    d = s.pairwise()
+    ref = brute_force_diffusion_distance(s.operator, 20)
+    assert len(s.eigenvalues) < shape.n_vertices  # it really truncated
+    # squared distances differ by at most the stated truncation bound
+    assert np.abs(d**2 - ref**2).max() <= s.truncation_bound + 1e-12 * (ref**2).max()
+    np.testing.assert_allclose(d, ref, atol=1e-5 * ref.max())
+
+
+def test_operator_is_the_symmetric_normalisation():
+    m = icosphere(1)
+    k = affinity(m)
+    v = np.asarray(k.sum(1)).ravel()
+    p = diffusion_operator(k).toarray()
+    np.testing.assert_allclose(p, k.toarray() / np.sqrt(np.outer(v, v)))
+    # eq. (9): density normalisation first
+    kt = k.toarray() / np.outer(v, v)
+    vt = kt.sum(1)
+    np.testing.assert_allclose(diffusion_operator(k, density_normalize=True).toarray(),
+                               kt / np.sqrt(np.outer(vt, vt)))
+    # the largest eigenvalue of a connected graph's operator is 1
+    assert np.linalg.eigvalsh(p).max() == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("solver", [lambda m: GraphDiffusionSolver(m),
+                                    lambda m: HeatDiffusionSolver(m)], ids=["graph", "heat"])
+def test_metric_axioms(solver):
+    s = solver(icosphere(3))
+    d = s.pairwise()
+    assert np.array_equal(d, d.T) and np.all(np.diag(d) == 0) and d[~np.eye(len(d), dtype=bool)].min() > 0
+    idx = np.random.default_rng(0).choice(len(d), 120, replace=False)
+    sub = d[np.ix_(idx, idx)]
+    # d(x, z) <= d(x, y) + d(y, z) for all triples
+    viol = sub[:, None, :] - (sub[:, :, None] + sub[None, :, :])
+    assert viol.max() <= 1e-12 * sub.max()
+    np.testing.assert_allclose(s.from_sources(idx[:5]), d[idx[:5]], atol=1e-12)
+
+
+def test_graph_diffusion_is_bending_invariant_and_euclidean_is_not():
+    flat, rolled = grid(31, 16), rolled_grid(31, 16)
+    np.testing.assert_allclose(GraphDiffusionSolver(rolled).pairwise(),
+                               GraphDiffusionSolver(flat).pairwise(), atol=1e-10)
+    hf, hr = HeatDiffusionSolver(flat).pairwise(), HeatDiffusionSolver(rolled).pairwise()
+    assert np.abs(hf - hr).mean() < 0.01 * hf.mean()
+    ef, er = metric_solver(flat, "euclidean").pairwise(), metric_solver(rolled, "euclidean").pairwise()
+    assert np.abs(ef - er).mean() > 0.05 * ef.mean()
+
+
+def test_heat_kernel_converges_under_refinement_graph_kernel_does_not():
+    # subdivision keeps the coarse vertices first, so vertex i is the same point at every level
+    levels = [icosphere(k) for k in (2, 3, 4)]  # 162, 642, 2562 vertices
+    n = levels[0].n_vertices
+    idx = np.arange(n)
+
+    def rel(solver_cls):
+        d = [solver_cls(m).from_sources(idx)[:, :n] for m in levels]
+        return [np.abs(x - d[-1]).mean() / d[-1].mean() for x in d[:-1]]
+
+    h2, h3 = rel(HeatDiffusionSolver)
+    assert h3 < 0.02 and h3 < 0.25 * h2  # converges (about first order in the edge length^2)
+    g2, g3 = rel(GraphDiffusionSolver)
+    assert g3 > 0.1  # m steps cover a resolution-dependent area
+
+
+def test_robust_and_cotan_laplacians_agree_on_a_good_mesh():
+    m = icosphere(3)
+    a = HeatDiffusionSolver(m).pairwise()
+    b = HeatDiffusionSolver(m, laplacian="robust").pairwise()
+    assert np.abs(a - b).mean() < 0.02 * a.mean()
+
+
+def test_point_cloud_diffusion():
+    pts = icosphere(3).vertices
+    s = metric_solver(PointCloud(pts), "diffusion", m=20, dense_below=0)
+    assert s.kernel == "gaussian"
+    ref = brute_force_diffusion_distance(s.operator, 20)
+    np.testing.assert_allclose(s.pairwise(), ref, atol=1e-5 * ref.max())
+    h = metric_solver(PointCloud(pts), "diffusion", kernel="heat").pairwise()
+    hm = metric_solver(icosphere(3), "diffusion", kernel="heat").pairwise()
+    assert np.abs(h - hm).mean() < 0.1 * hm.mean()
+
+
+def test_errors():
+    m = icosphere(1)
+    with pytest.raises(MetricError, match="connectivity kernel needs mesh edges"):
+        affinity(PointCloud(m.vertices), "connectivity")
+    with pytest.raises(ValueError, match="kernel must be"):
+        affinity(m, "cosine")
+    with pytest.raises(ValueError, match="sigma must be positive"):
+        affinity(m, "gaussian", sigma=-1.0)
+    with pytest.raises(ValueError, match="positive integer"):
+        GraphDiffusionSolver(m, m=0)
+    with pytest.raises(ValueError, match="tau must be positive"):
+        HeatDiffusionSolver(m, tau=0)
+    with pytest.raises(ValueError, match="laplacian must be"):
+        HeatDiffusionSolver(m, laplacian="fem")
+    with pytest.raises(ValueError, match="diffusion kernel must be"):
+        metric_solver(m, "diffusion", kernel="nope")
+    with pytest.raises(ValueError, match="metric must be one of"):
+        metric_solver(m, "hamming")
+    with pytest.raises(ValueError, match=r"sources must lie in \[0, 42\)"):
+        GraphDiffusionSolver(m).from_sources([42])
+
+
+def test_tosca_cat_spectral_matches_dense(cat_working):
+    w = cat_working.mesh
+    fast = GraphDiffusionSolver(w)
+    idx = np.arange(0, w.n_vertices, 7)
+    d = fast.from_sources(idx)
+    assert 0 < fast.truncation_bound and len(fast.eigenvalues) < w.n_vertices // 4
+    exact = GraphDiffusionSolver(w, dense_below=10**9)
+    ref = exact.from_sources(idx)
+    assert np.abs(d**2 - ref**2).max() <= fast.truncation_bound + 1e-12
+    assert np.abs(d - ref).max() < 1e-3 * ref.max()

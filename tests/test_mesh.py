@@ -1,0 +1,153 @@
+"""Facts about meshes: topology invariants, areas, immutability, validation, repair."""
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov import GromovWarning, Mesh, MeshError, PointCloud, repair
+from gromov.shapes import grid, icosphere, rolled_grid, torus
+
+
+def test_sphere_invariants():
+    m = icosphere(4)
+    assert m.n_vertices == 2562 and m.n_faces == 5120
+    assert m.euler_characteristic == 2 and m.genus == 0
+    assert m.boundary_loops == [] and m.is_edge_manifold and m.n_components == 1
+    assert abs(m.area - 4 * np.pi) / (4 * np.pi) < 0.01
+    np.testing.assert_allclose(m.vertex_areas.sum(), m.area)
+
+
+def test_grid_boundary_and_torus_genus():
+    g = grid(11, 6)
+    assert g.euler_characteristic == 1 and g.genus == 0
+    (loop,) = g.boundary_loops
+    assert len(loop) == 2 * (11 + 6) - 4
+    # consecutive loop vertices are boundary edges
+    be = {tuple(e) for e in g.boundary_edges.tolist()}
+    for a, b in zip(loop, np.roll(loop, -1)):
+        assert (min(a, b), max(a, b)) in be
+    t = torus()
+    assert t.euler_characteristic == 0 and t.genus == 1 and t.boundary_loops == []
+
+
+def test_rolled_grid_keeps_edge_lengths_nearly():
+    # chords of a circle are shorter than arcs, by at most (h/r)^2/24 relatively
+    f, r = grid(), rolled_grid()
+    np.testing.assert_array_equal(f.edges, r.edges)
+    rel = (f.edge_lengths - r.edge_lengths) / f.edge_lengths
+    assert rel.min() >= -1e-12 and rel.max() < 1e-3
+
+
+def test_adjacency_symmetric_with_edge_lengths():
+    m = icosphere(2)
+    a = m.adjacency
+    assert (a != a.T).nnz == 0
+    e = m.edges[5]
+    assert a[e[0], e[1]] == pytest.approx(np.linalg.norm(m.vertices[e[0]] - m.vertices[e[1]]))
+
+
+def test_arrays_are_immutable_copies():
+    v = icosphere(1).vertices.copy()
+    f = icosphere(1).faces.copy()
+    m = Mesh(v, f)
+    v[0] = 100.0  # the mesh holds its own copy
+    assert m.vertices[0, 0] != 100.0
+    with pytest.raises(ValueError):
+        m.vertices[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        m.faces[0, 0] = 1
+    with pytest.raises(ValueError):
+        m.vertex_areas[0] = 1.0
+
+
+@pytest.mark.parametrize(
+    "vertices, faces, match",
+    [
+        (np.zeros((3, 2)), [[0, 1, 2]], r"shape \(n, 3\)"),
+        (np.zeros((0, 3)), [[0, 1, 2]], "empty"),
+        ([[0, 0, 0], [1, 0, np.nan], [0, 1, 0]], [[0, 1, 2]], "non-finite"),
+        ([[0, 0, 0], [1, 0, np.inf], [0, 1, 0]], [[0, 1, 2]], "non-finite"),
+        (np.eye(3), [[0, 1, -1]], "negative vertex index -1"),
+        (np.eye(3), [[0, 1, 3]], "refers to vertex 3 but the mesh has only 3"),
+        (np.eye(3), [[0, 1, 2, 0]], r"shape \(m, 3\)"),
+        (np.eye(3), np.zeros((0, 3), int), "empty"),
+        (np.eye(3), [[0, 1, 1.5]], "integer vertex indices"),
+        ([["a", "b", "c"]], [[0, 0, 0]], "numeric"),
+    ],
+)
+def test_validation_errors(vertices, faces, match):
+    with pytest.raises(MeshError, match=match):
+        Mesh(vertices, faces)
+
+
+def test_point_cloud_validation():
+    with pytest.raises(MeshError, match="points"):
+        PointCloud(np.ones((4, 2)))
+    pc = PointCloud(np.random.default_rng(0).normal(size=(50, 3)))
+    g = pc.knn_graph(5)
+    assert (g != g.T).nnz == 0 and g.nnz >= 50 * 5
+    with pytest.raises(ValueError, match="k must be"):
+        pc.knn_graph(50)
+
+
+def test_repair_merges_duplicates_drops_degenerate_and_unreferenced():
+    base = icosphere(1)
+    v = np.vstack([base.vertices, base.vertices[3], [[9.0, 9.0, 9.0]]])  # dup of 3, unreferenced
+    n = base.n_vertices
+    f = base.faces.copy()
+    f[f == 3] = n  # half the faces use the duplicate
+    f[::2][f[::2] == n] = 3
+    f = np.vstack([f, [[0, 0, 1]], f[:1, ::-1]])  # a degenerate face and a repeated face
+    m = Mesh(v, f)
+    with pytest.warns(GromovWarning) as rec:
+        fixed, report = repair(m, source="x.off")
+    text = " ".join(str(r.message) for r in rec)
+    assert "x.off" in text and "duplicate" in text and "unreferenced" in text
+    assert report.duplicate_vertices == 1 and report.unreferenced_vertices == 1
+    assert report.degenerate_faces == 1 and report.duplicate_faces == 1
+    assert fixed.n_vertices == n
+    # input ids still point at the input vertex with the same coordinates
+    np.testing.assert_array_equal(fixed.vertices, m.vertices[fixed.input_ids])
+    assert fixed.euler_characteristic == 2  # the repaired sphere is closed again
+
+
+def test_repair_noop_returns_same_object():
+    m = icosphere(1)
+    fixed, report = repair(m)
+    assert fixed is m and not report.changed
+
+
+def test_components_and_nonmanifold_reporting():
+    a, b = icosphere(1), icosphere(0)
+    m = Mesh(np.vstack([a.vertices, b.vertices + 5]), np.vstack([a.faces, b.faces + a.n_vertices]))
+    assert m.n_components == 2 and m.euler_characteristic == 4
+    big = m.largest_component()
+    assert big.n_vertices == a.n_vertices
+    np.testing.assert_array_equal(big.input_ids, np.arange(a.n_vertices))
+    # three triangles on one edge
+    nm = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]],
+              [[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    assert not nm.is_edge_manifold
+    np.testing.assert_array_equal(nm.nonmanifold_edges, [[0, 1]])
+
+
+def test_summary_and_top_level_api():
+    s = torus().summary()
+    assert s["euler_characteristic"] == 0 and s["genus"] == 1 and s["components"] == 1
+    for name in ("load", "save", "simplify", "metric_solver", "farthest_point_sampling"):
+        assert hasattr(gromov, name)
+
+
+def test_tosca_cat_is_a_closed_sphere(tosca_cat0):
+    m = tosca_cat0
+    assert m.n_vertices == 27894
+    s = m.summary()
+    assert s["components"] == 1
+    # a closed genus-0 surface: chi = 2 - b
+    assert m.euler_characteristic == 2 - len(m.boundary_loops)
+
+
+def test_topkids_have_handles(data_dir):
+    kid = gromov.load(data_dir / "topkids" / "kid05.off.gz")
+    assert kid.euler_characteristic < 2
+    assert kid.genus >= 1

@@ -1,0 +1,60 @@
+"""Farthest point sampling: monotone covering radius, reproducibility, r-covering."""
+
+import numpy as np
+import pytest
+
+from gromov import farthest_point_sampling
+from gromov.metrics import GeodesicSolver, metric_solver
+from gromov.shapes import icosphere, torus
+
+
+@pytest.mark.parametrize("metric", ["geodesic", "diffusion", "euclidean"])
+def test_covering_radius_never_increases(metric):
+    s = metric_solver(torus(), metric)
+    fps = farthest_point_sampling(s, 40, seed=3)
+    assert len(np.unique(fps.indices)) == 40
+    assert np.all(np.diff(fps.radii) <= 0)
+    d = s.from_sources(fps.indices)
+    np.testing.assert_allclose(fps.distance, d.min(0), atol=1e-12)
+    np.testing.assert_array_equal(fps.indices[fps.nearest], fps.indices[d.argmin(0)])
+    assert fps.radius == pytest.approx(d.min(0).max())
+    # greedy samples are separated by at least the final covering radius
+    sub = d[:, fps.indices] + np.eye(40) * 1e9
+    assert sub.min() >= fps.radius - 1e-12
+
+
+def test_reproducible_under_seed():
+    s = GeodesicSolver(icosphere(3))
+    a = farthest_point_sampling(s, 20, seed=7)
+    b = farthest_point_sampling(s, 20, seed=7)
+    c = farthest_point_sampling(s, 20, seed=8)
+    np.testing.assert_array_equal(a.indices, b.indices)
+    assert a.indices[0] != c.indices[0]
+    np.testing.assert_array_equal(farthest_point_sampling(s, 5, first=11).indices[:1], [11])
+
+
+def test_r_covering_and_matrix_input():
+    s = GeodesicSolver(icosphere(3))
+    fps = farthest_point_sampling(s, radius=0.5, seed=0)
+    assert fps.radius <= 0.5 and fps.radii[-2] > 0.5
+    # a dense matrix gives the same samples as the solver it came from
+    diff = metric_solver(icosphere(3), "diffusion")
+    a = farthest_point_sampling(diff, 30, seed=0)
+    b = farthest_point_sampling(diff.pairwise(), 30, seed=0)
+    np.testing.assert_array_equal(a.indices, b.indices)
+    capped = farthest_point_sampling(s, 3, radius=0.01, seed=0)
+    assert len(capped) == 3
+
+
+def test_errors():
+    s = GeodesicSolver(icosphere(1))
+    with pytest.raises(ValueError, match="n_samples, radius, or both"):
+        farthest_point_sampling(s)
+    with pytest.raises(ValueError, match=r"n_samples must be an integer in \[1, 42\]"):
+        farthest_point_sampling(s, 43)
+    with pytest.raises(ValueError, match="radius must be non-negative"):
+        farthest_point_sampling(s, radius=-1)
+    with pytest.raises(ValueError, match="square distance matrix"):
+        farthest_point_sampling(np.zeros((3, 4)), 2)
+    with pytest.raises(ValueError, match="first must be"):
+        farthest_point_sampling(s, 2, first=99)
