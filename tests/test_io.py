@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import gzip
 import logging
-import os
 import re
 import struct
 import warnings
@@ -22,16 +21,6 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures"
 
 
 # --------------------------------------------------------------------------- helpers
-@pytest.fixture(scope="session")
-def data_dir() -> Path:
-    """The shared shape data (``$GROMOV_DATA``, default ``<repo>/../shared/data``)."""
-    default = Path(__file__).resolve().parents[2] / "shared" / "data"
-    d = Path(os.environ.get("GROMOV_DATA", default))
-    if not d.is_dir():
-        pytest.skip(f"shape data directory {d} does not exist (set GROMOV_DATA to run these tests)")
-    return d
-
-
 @pytest.fixture
 def sphere() -> Mesh:
     # irregular coordinates (not short decimals) so that float formatting matters

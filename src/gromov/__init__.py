@@ -5,10 +5,11 @@ with diffusion geometry for topologically-robust non-rigid shape matching", IJCV
 
 The pipeline, one module each: ``io`` (load/save) -> ``mesh`` (Mesh, PointCloud) ->
 ``resolution`` (working meshes) -> ``metrics`` (geodesic, diffusion, euclidean) ->
-``sampling`` (farthest points).
+``sampling`` (farthest points) -> ``gmds`` / ``gh`` (GMDS, the Gromov-Hausdorff distance).
 """
 
 from .errors import GromovError, GromovWarning, MeshError, MeshFormatError, MetricError
+from .gh import MatchResult, ShapeMetric, match
 from .io import load, save
 from .mesh import Mesh, PointCloud, RepairReport, repair
 from .metrics import (
@@ -31,5 +32,6 @@ __all__ = [
     "MetricSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver",
     "EuclideanSolver", "metric_solver", "distance_matrix",
     "WorkingMesh", "simplify", "working_mesh", "Samples", "farthest_point_sampling",
+    "ShapeMetric", "MatchResult", "match",
     "__version__",
 ]

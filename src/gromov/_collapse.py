@@ -9,8 +9,8 @@ it, we apply a collapse only when it is a legal edge contraction of the current 
   "Topology preserving edge contraction", Publ. Inst. Math. 1999), so the contraction is a
   homeomorphism and the Euler characteristic is kept;
 - an interior edge never joins two boundary vertices (that would pinch the boundary);
-- since the kept vertex stays at its own input position, no face around ``remove`` flips or
-  becomes degenerate when ``remove`` moves onto ``keep``.
+- since the kept vertex stays at its own input position, no face around ``remove`` flips,
+  becomes degenerate, or (optionally) becomes a sliver when ``remove`` moves onto ``keep``.
 
 Collapses that fail are skipped; later ones that involve the same vertices remain valid
 because a skipped collapse leaves both vertices alive.
@@ -43,6 +43,14 @@ def _normal(p, q, r):
 
 
 @njit(cache=True)
+def _sum_sq_edges(p, q, r):
+    s = 0.0
+    for k in range(3):
+        s += (p[k] - q[k]) ** 2 + (q[k] - r[k]) ** 2 + (r[k] - p[k]) ** 2
+    return s + 1e-300
+
+
+@njit(cache=True)
 def _n_neighbours(F, vf, vcount, v, stamp, tick):
     cnt = 0
     for k in range(vcount[v]):
@@ -56,7 +64,90 @@ def _n_neighbours(F, vf, vcount, v, stamp, tick):
 
 
 @njit(cache=True)
-def _replay(V, F, collapses, cap, min_cos):
+def _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos, min_quality):
+    """Contract edge (a, b) into a if that is legal (see module docstring); True if done."""
+    if vcount[a] + vcount[b] > width:
+        return False
+    # faces on edge (a, b) and their opposite vertices
+    ns = 0
+    for k in range(vcount[b]):
+        f = vf[b, k]
+        if F[f, 0] == a or F[f, 1] == a or F[f, 2] == a:
+            shared[ns] = f
+            ns += 1
+    if ns == 0 or ns > 2:
+        return False
+    # boundary vertices have one more neighbour than faces
+    tick += 1
+    a_boundary = _n_neighbours(F, vf, vcount, a, stamp, tick) != vcount[a]
+    tick += 1
+    b_boundary = _n_neighbours(F, vf, vcount, b, stamp, tick) != vcount[b]
+    if ns == 2 and a_boundary and b_boundary:
+        return False
+    # link condition: |N(a) & N(b)| == number of faces on the edge
+    tick += 1
+    for k in range(vcount[a]):
+        f = vf[a, k]
+        for j in range(3):
+            stamp[F[f, j]] = tick
+    tick += 1
+    common = 0
+    for k in range(vcount[b]):
+        f = vf[b, k]
+        for j in range(3):
+            w = F[f, j]
+            if w != a and w != b and stamp[w] == tick - 1:
+                stamp[w] = tick
+                common += 1
+    if common != ns:
+        return False
+    # no flipped or degenerate face when b moves onto a
+    ok = True
+    for k in range(vcount[b]):
+        f = vf[b, k]
+        is_shared = False
+        for s in range(ns):
+            if shared[s] == f:
+                is_shared = True
+        if is_shared:
+            continue
+        p = [F[f, 0], F[f, 1], F[f, 2]]
+        n0 = _normal(V[p[0]], V[p[1]], V[p[2]])
+        for j in range(3):
+            if p[j] == b:
+                p[j] = a
+        n1 = _normal(V[p[0]], V[p[1]], V[p[2]])
+        l0 = np.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
+        l1 = np.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
+        if l1 <= 1e-12 * (l0 + 1e-300) or (n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2]) < min_cos * l0 * l1:
+            ok = False
+            break
+        # shape quality 2*sqrt(3)*|n| / sum of squared edges (1 for an equilateral triangle)
+        q1 = 2.0 * np.sqrt(3.0) * l1 / _sum_sq_edges(V[p[0]], V[p[1]], V[p[2]])
+        if q1 < min_quality:
+            ok = False
+            break
+    if not ok:
+        return False
+    # apply
+    for s in range(ns):
+        f = shared[s]
+        face_alive[f] = False
+        for j in range(3):
+            _remove_face(vf, vcount, F[f, j], f)
+    for k in range(vcount[b]):
+        f = vf[b, k]
+        for j in range(3):
+            if F[f, j] == b:
+                F[f, j] = a
+        vf[a, vcount[a]] = f
+        vcount[a] += 1
+    vcount[b] = 0
+    return True
+
+
+@njit(cache=True)
+def _replay(V, F, collapses, cap, min_cos, min_quality):
     n, m = V.shape[0], F.shape[0]
     F = F.copy()
     vcount = np.zeros(n, np.int64)
@@ -77,89 +168,33 @@ def _replay(V, F, collapses, cap, min_cos):
     stamp = np.zeros(n, np.int64)
     tick = 0
     shared = np.empty(width, np.int64)
+    alias = np.arange(n)
     for c in range(collapses.shape[0]):
         a, b = collapses[c, 0], collapses[c, 1]
-        if a == b or not alive[a] or not alive[b]:
+        while alias[a] != a:
+            a = alias[a]
+        while alias[b] != b:
+            b = alias[b]
+        if a == b:
             continue
-        if vcount[a] + vcount[b] > width:
-            continue
-        # faces on edge (a, b) and their opposite vertices
-        ns = 0
-        for k in range(vcount[b]):
-            f = vf[b, k]
-            if F[f, 0] == a or F[f, 1] == a or F[f, 2] == a:
-                shared[ns] = f
-                ns += 1
-        if ns == 0 or ns > 2:
-            continue
-        # boundary vertices have one more neighbour than faces
-        tick += 1
-        a_boundary = _n_neighbours(F, vf, vcount, a, stamp, tick) != vcount[a]
-        tick += 1
-        b_boundary = _n_neighbours(F, vf, vcount, b, stamp, tick) != vcount[b]
-        if ns == 2 and a_boundary and b_boundary:
-            continue
-        # link condition: |N(a) & N(b)| == number of faces on the edge
-        tick += 1
-        for k in range(vcount[a]):
-            f = vf[a, k]
-            for j in range(3):
-                stamp[F[f, j]] = tick
-        tick += 1
-        common = 0
-        for k in range(vcount[b]):
-            f = vf[b, k]
-            for j in range(3):
-                w = F[f, j]
-                if w != a and w != b and stamp[w] == tick - 1:
-                    stamp[w] = tick
-                    common += 1
-        if common != ns:
-            continue
-        # no flipped or degenerate face when b moves onto a
-        ok = True
-        for k in range(vcount[b]):
-            f = vf[b, k]
-            is_shared = False
-            for s in range(ns):
-                if shared[s] == f:
-                    is_shared = True
-            if is_shared:
-                continue
-            p = [F[f, 0], F[f, 1], F[f, 2]]
-            n0 = _normal(V[p[0]], V[p[1]], V[p[2]])
-            for j in range(3):
-                if p[j] == b:
-                    p[j] = a
-            n1 = _normal(V[p[0]], V[p[1]], V[p[2]])
-            l0 = np.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
-            l1 = np.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
-            if l1 <= 1e-12 * (l0 + 1e-300) or (n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2]) < min_cos * l0 * l1:
-                ok = False
-                break
-        if not ok:
-            continue
-        # apply
-        for s in range(ns):
-            f = shared[s]
-            face_alive[f] = False
-            for j in range(3):
-                _remove_face(vf, vcount, F[f, j], f)
-        for k in range(vcount[b]):
-            f = vf[b, k]
-            for j in range(3):
-                if F[f, j] == b:
-                    F[f, j] = a
-            vf[a, vcount[a]] = f
-            vcount[a] += 1
-        vcount[b] = 0
-        alive[b] = False
-        applied[c] = True
+        tick += 4
+        if _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos, min_quality):
+            alive[b] = False
+            alias[b] = a
+            applied[c] = True
+        else:
+            # the simplifier would have put the merged vertex between the two: try keeping b
+            tick += 4
+            if _try_collapse(b, a, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos,
+                             min_quality):
+                alive[a] = False
+                alias[a] = b
+                applied[c] = True
     return alive, F[face_alive], applied
 
 
 def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndarray, *,
-                     min_cos: float = 0.0):
+                     min_cos: float = 0.0, min_quality: float = 0.0):
     """Apply the legal collapses of ``collapses`` (rows ``(keep, remove)``) to a mesh.
 
     Parameters
@@ -169,6 +204,9 @@ def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndar
     collapses : ndarray, shape (c, 2)
     min_cos : float, default 0.0
         A face around the removed vertex may turn by at most ``arccos(min_cos)``.
+    min_quality : float, default 0.0
+        Skip a collapse that would create a face of shape quality
+        ``2 sqrt(3) area / sum(edge^2)`` (1 for equilateral) below this.
 
     Returns
     -------
@@ -182,4 +220,4 @@ def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndar
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     c = np.ascontiguousarray(collapses, dtype=np.int64).reshape(-1, 2)
-    return _replay(v, f, c, 64, float(min_cos))
+    return _replay(v, f, c, 64, float(min_cos), float(min_quality))

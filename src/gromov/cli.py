@@ -160,6 +160,54 @@ def cmd_distances(args) -> int:
     return 0
 
 
+def _norm_arg(text: str) -> str:
+    from .gmds import parse_norm
+
+    try:
+        parse_norm(text)
+    except (TypeError, ValueError) as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def cmd_match(args) -> int:
+    from .gh import ShapeMetric, match
+
+    shapes = []
+    for path in (args.x, args.y):
+        shape = _load(path)
+        try:
+            shapes.append(ShapeMetric(shape, args.metric, resolution=args.resolution,
+                                      metric_options=_metric_options(args)))
+        except TypeError:
+            raise _UserError(f"{path}: matching needs a triangle mesh, got a point cloud") from None
+    for path, s in zip((args.x, args.y), shapes):
+        if args.samples > s.mesh.n_vertices:
+            raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
+                             f"vertices of the working mesh of {path}")
+    with _progress(2, "metrics", args.quiet or args.json) as bar:
+        for s in shapes:
+            s.distances
+            bar.update(1)
+    r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
+              solver=args.solver, seed=args.seed)
+    if args.out:
+        out = Path(args.out)
+        if out.parent and not out.parent.exists():
+            raise _UserError(f"output folder {out.parent} does not exist")
+        np.savez_compressed(out, **r.arrays())
+    if args.json:
+        print(json.dumps(r.to_dict()))
+    else:
+        print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
+              f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
+              f"{r.n_samples} samples per shape")
+        print(f"  distortion: {r.norm} {r.distortion:.6g}, rms {r.distortion_l2:.6g}, "
+              f"max {r.distortion_linf:.6g}; {r.n_iter} iterations, "
+              f"{'converged' if r.converged else 'not converged'}, {r.seconds:.2f} s")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .metrics import metric_solver
     from .sampling import farthest_point_sampling
@@ -210,6 +258,22 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", required=True, help="output .npz with 'distances' (K,K) and 'samples' (K,)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     q.set_defaults(func=cmd_distances)
+
+    q = sub.add_parser("match", help="Gromov-Hausdorff distance and correspondence of two shapes")
+    q.add_argument("x", help="first mesh")
+    q.add_argument("y", help="second mesh")
+    _add_metric_args(q)
+    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
+    q.add_argument("--norm", type=_norm_arg, default="l2", help="l2 (default), linf or p:VALUE")
+    q.add_argument("--solver", choices=("gmds", "gw"), default="gmds",
+                   help="symmetric GMDS (default) or Gromov-Wasserstein (POT) on the same samples")
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.add_argument("--out", default=None, help="write the correspondences to this .npz")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_match)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")
     q.add_argument("--samples", type=_positive_int, default=12)

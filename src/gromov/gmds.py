@@ -1,0 +1,251 @@
+r"""Generalized multidimensional scaling (GMDS) and the symmetric Gromov-Hausdorff distortion.
+
+GMDS (Bronstein, Bronstein & Kimmel, PNAS 103(5), 2006; SIAM J. Sci. Comput. 28(5), 2006)
+embeds samples of one surface into another: samples ``P = {p_1..p_M}`` of X with distances
+``d_X`` are mapped to points ``q'_i`` anywhere on Y's working mesh (face + barycentric
+coordinates) minimising the distortion
+
+.. math:: \sigma(Q') = \sum_{i<j} w_{ij}\,\big(d_X(p_i, p_j) - d_Y(q'_i, q'_j)\big)^2 .
+
+The symmetric version of Bronstein et al. 2010, §4, uses the two-sided correspondence
+:math:`C = (P \times Q') \cup (Q \times P')` (``P'`` on X are images of Y's samples ``Q``) and
+compares the full block matrices
+
+.. math::
+   \mathrm{dis}(C) = \Big\| \begin{pmatrix} D_X(P,P) & D_X(P,P') \\ D_X(P',P) & D_X(P',P') \end{pmatrix}
+   - \begin{pmatrix} D_Y(Q',Q') & D_Y(Q',Q) \\ D_Y(Q,Q') & D_Y(Q,Q) \end{pmatrix} \Big\| ,
+
+including the cross terms. Both embeddings are optimised alternately (block coordinate
+descent: with ``P'`` fixed, the ``Q'`` sub-problem is an ordinary weighted GMDS whose targets
+include ``d_X(p_i, p'_k)``, and vice versa), so each sweep lowers the L2 distortion.
+The Gromov-Hausdorff estimate is :math:`\hat d_{GH} = \tfrac12 \min_C \mathrm{dis}(C)`.
+
+Norms: ``"l2"`` (root mean square over the ordered pairs), ``"p:VALUE"`` by iteratively
+reweighted least squares (weights :math:`|r|^{p-2}`), and ``"linf"`` (the maximum) by IRLS
+with a growing exponent.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._gmds_kernel import face_neighbours, pair_distances, sweep
+from .errors import MetricError
+from .mesh import Mesh
+
+__all__ = ["SurfaceDistance", "SurfacePoints", "parse_norm", "norm_value", "SymmetricGMDS"]
+
+logger = logging.getLogger(__name__)
+
+
+def parse_norm(norm) -> float:
+    """``"l2"`` -> 2, ``"linf"`` -> inf, ``"p:1.5"`` or a number -> that exponent (>= 1)."""
+    if isinstance(norm, (int, float)) and not isinstance(norm, bool):
+        p = float(norm)
+    elif isinstance(norm, str):
+        s = norm.strip().lower()
+        if s in ("l2", "2"):
+            p = 2.0
+        elif s in ("linf", "inf", "max"):
+            p = np.inf
+        elif s.startswith("p:") or s.startswith("l"):
+            try:
+                p = float(s[2:] if s.startswith("p:") else s[1:])
+            except ValueError:
+                raise ValueError(f"norm must be 'l2', 'linf' or 'p:VALUE', got {norm!r}") from None
+        else:
+            raise ValueError(f"norm must be 'l2', 'linf' or 'p:VALUE', got {norm!r}")
+    else:
+        raise TypeError(f"norm must be a string or a number, got {type(norm).__name__}")
+    if not p >= 1:
+        raise ValueError(f"the norm's exponent must be >= 1, got {p}")
+    return p
+
+
+def norm_value(r: np.ndarray, p: float) -> float:
+    """``(mean |r|^p)^(1/p)`` over the entries of ``r`` (the maximum for ``p = inf``)."""
+    r = np.abs(np.asarray(r, dtype=float))
+    if r.size == 0:
+        return 0.0
+    if np.isinf(p):
+        return float(r.max())
+    return float(np.mean(r**p) ** (1.0 / p))
+
+
+@dataclass(frozen=True, eq=False)
+class SurfacePoints:
+    """Points on a working mesh: ``face`` (k,) and ``bary`` (k, 3) barycentric coordinates."""
+
+    face: np.ndarray
+    bary: np.ndarray
+
+    def vertex(self, faces: np.ndarray) -> np.ndarray:
+        """The corner of each point's face with the largest barycentric weight."""
+        return faces[self.face, np.argmax(self.bary, axis=1)]
+
+    def positions(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        return np.einsum("kc,kcd->kd", self.bary, vertices[faces[self.face]])
+
+    @classmethod
+    def at_vertices(cls, mesh: Mesh, vertices) -> "SurfacePoints":
+        """Points exactly at the given vertices (each in one of its faces)."""
+        v = np.asarray(vertices, dtype=np.int64)
+        indptr, fids = mesh.vertex_faces
+        if np.any(indptr[v + 1] == indptr[v]):
+            raise MetricError("a vertex with no face cannot carry a surface point")
+        face = fids[indptr[v]]
+        corner = np.argmax(mesh.faces[face] == v[:, None], axis=1)
+        return cls(face.copy(), np.eye(3)[corner])
+
+
+class SurfaceDistance:
+    """What GMDS needs of one surface: its working mesh, vertex distances and face adjacency.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The working mesh.
+    distances : ndarray, shape (n, n)
+        Vertex distance matrix of the chosen metric (finite).
+    """
+
+    def __init__(self, mesh: Mesh, distances: np.ndarray):
+        d = np.asarray(distances, dtype=np.float64)
+        if d.shape != (mesh.n_vertices, mesh.n_vertices):
+            raise ValueError(f"distances must be ({mesh.n_vertices}, {mesh.n_vertices}), got {d.shape}")
+        if not np.isfinite(d).all():
+            raise MetricError("GMDS needs finite distances: the mesh has several connected "
+                              "components (use Mesh.largest_component())")
+        self.mesh = mesh
+        self.distances = d
+        self.sq = np.ascontiguousarray(d * d)
+        self.faces = np.ascontiguousarray(mesh.faces)
+        self.neighbours = face_neighbours(mesh.faces)
+
+    def between(self, pts: SurfacePoints, fixed: np.ndarray) -> np.ndarray:
+        """Interpolated distances ``(k, k + l)`` from points to [points, fixed vertices]."""
+        return pair_distances(pts.face, pts.bary, np.asarray(fixed, np.int64), self.sq, self.faces)
+
+
+class SymmetricGMDS:
+    """Alternating optimisation of the two-sided correspondence ``C = (P x Q') u (Q x P')``.
+
+    Parameters
+    ----------
+    X, Y : SurfaceDistance
+    P, Q : ndarray of int
+        Sample vertices on X and on Y (``M`` and ``K`` of them).
+    p : float
+        Norm exponent (2, a value >= 1, or ``inf``).
+    weights_x, weights_y : ndarray, optional
+        Pair weights for the (P, P) and (Q, Q) blocks; the cross blocks use the product of
+        the row weights. Default: all ones.
+    max_iter : int, default 100
+        Sweeps (each moves every point of both embeddings once) per IRLS round.
+    tol : float, default 1e-6
+        Stop when a sweep lowers the weighted distortion by less than ``tol`` relatively.
+    """
+
+    def __init__(self, X: SurfaceDistance, Y: SurfaceDistance, P, Q, *, p: float = 2.0,
+                 max_iter: int = 100, tol: float = 1e-6, n_newton: int = 3,
+                 irls_rounds: int = 6, radius: float | None = None):
+        self.X, self.Y = X, Y
+        self.P = np.asarray(P, dtype=np.int64)
+        self.Q = np.asarray(Q, dtype=np.int64)
+        self.p = float(p)
+        self.max_iter, self.tol, self.n_newton = int(max_iter), float(tol), int(n_newton)
+        self.irls_rounds = int(irls_rounds)
+        self.radius = radius
+        self.history: list[float] = []
+
+    # ------------------------------------------------------------------ blocks
+    def blocks(self, img_p: SurfacePoints, img_q: SurfacePoints):
+        """Residual matrix ``(M+K, M+K)`` of the two-sided correspondence: D_X(C) - D_Y(C)."""
+        M, K = len(self.P), len(self.Q)
+        dx_pp = self.X.distances[np.ix_(self.P, self.P)]
+        dy_qq = self.Y.distances[np.ix_(self.Q, self.Q)]
+        ex = self.X.between(img_q, self.P)   # (K, K + M): P' to [P', P]
+        ey = self.Y.between(img_p, self.Q)   # (M, M + K): Q' to [Q', Q]
+        dx = np.empty((M + K, M + K))
+        dy = np.empty_like(dx)
+        dx[:M, :M], dx[M:, M:] = dx_pp, 0.5 * (ex[:, :K] + ex[:, :K].T)
+        dx[M:, :M] = ex[:, K:]
+        dx[:M, M:] = ex[:, K:].T
+        dy[:M, :M], dy[M:, M:] = 0.5 * (ey[:, :M] + ey[:, :M].T), dy_qq
+        dy[:M, M:] = ey[:, M:]
+        dy[M:, :M] = ey[:, M:].T
+        return dx, dy
+
+    def distortion(self, img_p: SurfacePoints, img_q: SurfacePoints, p: float | None = None) -> float:
+        """dis(C) in norm ``p`` (default: the solver's), over ordered pairs a != b."""
+        dx, dy = self.blocks(img_p, img_q)
+        r = (dx - dy)[~np.eye(len(dx), dtype=bool)]
+        return norm_value(r, self.p if p is None else p)
+
+    def _base_weights(self):
+        M, K = len(self.P), len(self.Q)
+        w = np.ones((M + K, M + K))
+        if self.radius is not None:
+            # partial matching: only pairs closer than radius (in the fixed sample metric)
+            wx = (self.X.distances[np.ix_(self.P, self.P)] <= self.radius).astype(float)
+            wy = (self.Y.distances[np.ix_(self.Q, self.Q)] <= self.radius).astype(float)
+            w[:M, :M], w[M:, M:] = wx, wy
+        np.fill_diagonal(w, 0.0)
+        return w
+
+    # ------------------------------------------------------------------ optimisation
+    def _weighted(self, img_p, img_q, w):
+        dx, dy = self.blocks(img_p, img_q)
+        return float(np.sum(w * (dx - dy) ** 2))
+
+    def _l2_solve(self, img_p: SurfacePoints, img_q: SurfacePoints, w: np.ndarray):
+        M, K = len(self.P), len(self.Q)
+        X, Y = self.X, self.Y
+        eps = 1e-9 * max(X.distances.max(), Y.distances.max())
+        pf, pb = img_p.face.copy(), img_p.bary.copy()
+        qf, qb = img_q.face.copy(), img_q.bary.copy()
+        cur = self._weighted(SurfacePoints(pf, pb), SurfacePoints(qf, qb), w)
+        self.history.append(cur)
+        n_iter = 0
+        converged = False
+        for n_iter in range(1, self.max_iter + 1):
+            # Q' on Y: targets to [Q', Q] are d_X(P, P) and d_X(P, P')
+            ex = X.between(SurfacePoints(qf, qb), self.P)  # (K, K + M)
+            delta_y = np.hstack([X.distances[np.ix_(self.P, self.P)], ex[:, K:].T])
+            wy = np.hstack([w[:M, :M], w[:M, M:]])
+            sweep(pf, pb, self.Q, delta_y, wy, Y.sq, Y.faces, Y.neighbours, self.n_newton, eps)
+            # P' on X: targets to [P', P] are d_Y(Q, Q) and d_Y(Q, Q')
+            ey = Y.between(SurfacePoints(pf, pb), self.Q)  # (M, M + K)
+            delta_x = np.hstack([Y.distances[np.ix_(self.Q, self.Q)], ey[:, M:].T])
+            wx = np.hstack([w[M:, M:], w[M:, :M]])
+            sweep(qf, qb, self.P, delta_x, wx, X.sq, X.faces, X.neighbours, self.n_newton, eps)
+            new = self._weighted(SurfacePoints(pf, pb), SurfacePoints(qf, qb), w)
+            self.history.append(new)
+            if cur - new <= self.tol * max(cur, 1e-300):
+                converged = True
+                cur = new
+                break
+            cur = new
+        return SurfacePoints(pf, pb), SurfacePoints(qf, qb), n_iter, converged
+
+    def solve(self, img_p: SurfacePoints, img_q: SurfacePoints):
+        """Optimise from the given initial images; returns ``(img_p, img_q, n_iter, converged)``."""
+        w0 = self._base_weights()
+        if self.p == 2.0:
+            return self._l2_solve(img_p, img_q, w0)
+        # IRLS: weights |r|^(p-2); for L-infinity the exponent grows
+        exps = ([4.0, 8.0, 16.0, 32.0, 64.0][: self.irls_rounds] if np.isinf(self.p)
+                else [self.p] * self.irls_rounds)
+        img_p, img_q, total, conv = *self._l2_solve(img_p, img_q, w0)[:2], 0, False
+        for e in exps:
+            dx, dy = self.blocks(img_p, img_q)
+            r = np.abs(dx - dy)
+            floor = 1e-6 * max(r.max(), 1e-300)
+            w = w0 * np.maximum(r, floor) ** (e - 2.0)
+            w *= w0.sum() / max(w.sum(), 1e-300)
+            img_p, img_q, n, conv = self._l2_solve(img_p, img_q, w)
+            total += n
+        return img_p, img_q, total, conv

@@ -1,0 +1,112 @@
+"""The command line: `gromov info`, `gromov distances` (a contract other tools read), errors."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov.cli import main
+from gromov.metrics import GeodesicSolver, metric_solver
+from gromov.shapes import icosphere, torus
+
+
+@pytest.fixture
+def torus_file(tmp_path):
+    path = tmp_path / "torus.off"
+    gromov.save(torus(), path)
+    return path
+
+
+def test_info_reports_topology(torus_file, capsys):
+    assert main(["info", str(torus_file), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["euler_characteristic"] == 0 and info["genus"] == 1
+    assert info["components"] == 1 and info["boundary_loops"] == 0
+    assert info["vertices"] == torus().n_vertices
+    # the double sweep finds the largest distance of the all-pairs matrix
+    exact = GeodesicSolver(torus()).diameter(exact=True)
+    assert info["geodesic_diameter"] == pytest.approx(exact, rel=0.01)
+    assert main(["info", str(torus_file)]) == 0
+    assert "euler characteristic" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("metric", ["geodesic", "diffusion", "euclidean"])
+def test_distances_all_vertices(tmp_path, metric):
+    mesh = icosphere(2)
+    src = tmp_path / "s.ply"
+    gromov.save(mesh, src)
+    out = tmp_path / "d.npz"
+    assert main(["distances", str(src), "--metric", metric, "--out", str(out), "-q"]) == 0
+    z = np.load(out)
+    np.testing.assert_array_equal(z["samples"], np.arange(mesh.n_vertices))
+    np.testing.assert_allclose(z["distances"], metric_solver(mesh, metric).pairwise(), atol=1e-12)
+
+
+def test_distances_samples_refer_to_the_input_file(tmp_path):
+    mesh = icosphere(4)  # 2562 vertices, simplified to 500
+    src = tmp_path / "sphere.obj.gz"
+    gromov.save(mesh, src)
+    out = tmp_path / "d.npz"
+    rc = main(["distances", str(src), "--metric", "geodesic", "--resolution", "500",
+               "--samples", "25", "--seed", "3", "--out", str(out), "-q"])
+    assert rc == 0
+    z = np.load(out)
+    d, s = z["distances"], z["samples"]
+    assert d.shape == (25, 25) and s.shape == (25,) and s.dtype == np.int64
+    assert np.allclose(d, d.T) and np.all(np.diag(d) == 0)
+    assert len(np.unique(s)) == 25 and s.max() < mesh.n_vertices
+    # distances between the input vertices, measured on the full mesh, agree to discretisation
+    full = GeodesicSolver(mesh).submatrix(s)
+    assert np.abs(d - full).max() < 0.05 * full.max()
+    # same seed, same samples
+    out2 = tmp_path / "d2.npz"
+    main(["distances", str(src), "--metric", "geodesic", "--resolution", "500",
+          "--samples", "25", "--seed", "3", "--out", str(out2), "-q"])
+    np.testing.assert_array_equal(np.load(out2)["samples"], s)
+
+
+def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
+    src = data_dir / "tosca" / "cat0.off.gz"
+    out = tmp_path / "cat.npz"
+    assert main(["distances", str(src), "--metric", "diffusion", "--samples", "50",
+                 "--out", str(out), "-q"]) == 0
+    z = np.load(out)
+    cat = gromov.load(src)
+    work = gromov.simplify(cat, 3000)
+    assert z["samples"].max() < cat.n_vertices
+    # every sample is a working vertex, i.e. an input vertex of the working mesh
+    assert np.isin(z["samples"], work.mesh.input_ids).all()
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["info", "/no/such/file.off"], "/no/such/file.off"),
+        (["info", "{fixtures}/../test_cli.py"], "test_cli.py"),
+        (["distances", "{sphere}", "--samples", "1000", "--out", "{tmp}/x.npz"], "more than the 162"),
+        (["distances", "{sphere}", "--out", "{tmp}/missing/x.npz"], "does not exist"),
+        (["distances", "{sphere}", "--metric", "diffusion", "--steps", "0", "--out", "x.npz"],
+         "positive integer"),
+    ],
+)
+def test_user_errors_are_one_line_without_traceback(tmp_path, argv, message):
+    sphere = tmp_path / "s.off"
+    gromov.save(icosphere(2), sphere)
+    fixtures = str(__import__("pathlib").Path(__file__).parent / "fixtures")
+    argv = [a.format(sphere=sphere, tmp=tmp_path, fixtures=fixtures) for a in argv]
+    r = subprocess.run([sys.executable, "-m", "gromov", *argv], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    # one error line (argparse adds a usage line before its own errors)
+    assert [ln for ln in lines if "error:" in ln] == [lines[-1]]
+    assert lines[-1].startswith("gromov") and message in lines[-1]
+
+
+def test_demo_runs(capsys):
+    assert main(["demo", "--samples", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "geodesic" in out and "diffusion" in out and "covering radius" in out

@@ -1,0 +1,212 @@
+"""Fast marching geodesics (gromov.metrics._fmm): accuracy against known distances and facts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gromov.metrics._fmm import FastMarching
+from gromov.shapes import grid, icosphere, rolled_grid
+
+
+def _rel_err(D, exact):
+    """Relative errors over the entries where the exact distance is positive (not sources)."""
+    m = np.isfinite(exact) & (exact > 1e-6)
+    return np.abs(D[m] - exact[m]) / exact[m]
+
+
+@pytest.fixture(scope="module")
+def sphere4():
+    m = icosphere(4)
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+@pytest.fixture(scope="module")
+def sphere3_solver():
+    m = icosphere(3)
+    return FastMarching(m.vertices, m.faces)
+
+
+def _sheared_sheet():
+    """Flat 4 x 0.2 sheet (41 x 11 vertices) sheared so that every face has an obtuse angle."""
+    g = grid(41, 11, width=4.0, height=0.2)
+    v = np.asarray(g.vertices).copy()
+    v[:, 0] += 1.0 * v[:, 1]  # 0.1 x 0.02 cells, sheared by 0.02 per row
+    return v, np.asarray(g.faces)
+
+
+def _n_obtuse(v, f):
+    p = v[f]
+    n = 0
+    for j in range(3):
+        dot = ((p[:, (j + 1) % 3] - p[:, j]) * (p[:, (j + 2) % 3] - p[:, j])).sum(1)
+        n += int((dot < 0).sum())
+    return n
+
+
+# ----------------------------------------------------------------------------------------
+# accuracy
+# ----------------------------------------------------------------------------------------
+def test_sphere_all_pairs_match_great_circles(sphere4):
+    v, f = sphere4
+    D = FastMarching(v, f).pairwise()
+    G = np.arccos(np.clip(v @ v.T, -1.0, 1.0))
+    off = ~np.eye(len(v), dtype=bool)
+    rel = np.abs(D[off] - G[off]) / G[off]
+    assert rel.mean() <= 0.01, rel.mean()
+    assert rel.max() <= 0.03, rel.max()
+
+
+def test_planar_wavefront_update_is_the_weaker_one(sphere4):
+    # Kimmel & Sethian's planar update, kept privately for comparison: its O(h/r) error
+    # near the source is what the point-source update removes.
+    v, f = sphere4
+    src = np.arange(0, len(v), 97)
+    G = np.arccos(np.clip(v[src] @ v.T, -1.0, 1.0))
+    e_src = _rel_err(FastMarching(v, f).distances(src), G)
+    e_pla = _rel_err(FastMarching(v, f, _update="planar").distances(src), G)
+    assert e_pla.mean() > 2 * e_src.mean()
+    assert e_pla.max() > 0.05 > 0.03 > e_src.max()
+
+
+def test_obtuse_unfolding_matters_on_flat_sheet():
+    v, f = _sheared_sheet()
+    exact = np.linalg.norm(v[:, None] - v[None], axis=-1)
+    n_obtuse = _n_obtuse(v, f)
+    assert n_obtuse >= 0.9 * len(f)  # (nearly) every face is obtuse
+
+    fm = FastMarching(v, f)
+    assert fm._n_split + fm._n_unsplit == n_obtuse
+    assert fm._n_split >= 0.75 * n_obtuse  # the others sit on the boundary
+    e_on = _rel_err(fm.pairwise(), exact)
+    e_off = _rel_err(FastMarching(v, f, _unfold=False).pairwise(), exact)
+    assert e_off.mean() > 0.01
+    assert e_on.max() < 1e-9  # a flat triangulation: exact once every angle is acute
+    # the paper's planar update benefits as well
+    p_on = _rel_err(FastMarching(v, f, _update="planar").pairwise(), exact)
+    p_off = _rel_err(FastMarching(v, f, _update="planar", _unfold=False).pairwise(), exact)
+    assert p_on.mean() < 0.5 * p_off.mean()
+
+
+def test_against_exact_geodesics_on_jittered_sphere():
+    geodesic = pytest.importorskip("pygeodesic.geodesic")
+    m = icosphere(3)
+    rng = np.random.default_rng(0)
+    v = np.asarray(m.vertices) + rng.normal(0.0, 0.01, m.vertices.shape)
+    f = np.asarray(m.faces)
+    src = np.arange(0, len(v), 32)
+    algo = geodesic.PyGeodesicAlgorithmExact(v, f)
+    exact = np.stack([algo.geodesicDistances(np.array([s]), None)[0] for s in src])
+    rel = _rel_err(FastMarching(v, f).distances(src), exact)
+    assert rel.mean() <= 0.01, rel.mean()
+    assert rel.max() <= 0.03, rel.max()
+
+
+def test_against_exact_geodesics_on_rolled_sheet():
+    # the rolled sheet is a developable polyhedron: fast marching is exact on it
+    geodesic = pytest.importorskip("pygeodesic.geodesic")
+    m = rolled_grid(31, 16)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    src = np.arange(0, len(v), 25)
+    algo = geodesic.PyGeodesicAlgorithmExact(v, f)
+    exact = np.stack([algo.geodesicDistances(np.array([s]), None)[0] for s in src])
+    rel = _rel_err(FastMarching(v, f).distances(src), exact)
+    assert rel.mean() <= 1e-9 and rel.max() <= 1e-8
+
+
+# ----------------------------------------------------------------------------------------
+# facts
+# ----------------------------------------------------------------------------------------
+def test_pairwise_symmetric_zero_diagonal(sphere3_solver):
+    fm = sphere3_solver
+    raw = fm.distances(np.arange(fm.n_vertices))
+    D = fm.pairwise()
+    assert D.shape == (fm.n_vertices,) * 2
+    np.testing.assert_array_equal(D, D.T)
+    np.testing.assert_array_equal(np.diag(D), 0.0)
+    np.testing.assert_allclose(D, (raw + raw.T) / 2 - np.diag(np.diag(raw)), rtol=0, atol=0)
+    off = ~np.eye(fm.n_vertices, dtype=bool)
+    assert (np.abs(raw - raw.T)[off] / raw[off]).max() < 0.02  # nearly symmetric already
+    assert (D[off] > 0).all()
+
+
+def test_zero_at_sources_and_positive_elsewhere(sphere3_solver):
+    fm = sphere3_solver
+    d = fm.distance([7, 300])
+    assert d[7] == 0.0 and d[300] == 0.0
+    assert (np.delete(d, [7, 300]) > 0).all()
+    rows = fm.distances([7, 300])
+    assert rows[0, 7] == 0.0 and rows[1, 300] == 0.0
+    np.testing.assert_array_equal(fm.distance(7), fm.distances([7])[0])
+    np.testing.assert_array_equal(fm.distance(np.int32(7)), fm.distance([7]))
+
+
+def test_multi_source_is_min_over_single_sources(sphere3_solver):
+    fm = sphere3_solver
+    src = [0, 100, 200, 400]
+    multi = fm.distance(src)
+    single = fm.distances(src).min(axis=0)
+    np.testing.assert_allclose(multi, single, rtol=0.01, atol=1e-12)
+    # far from the shocks where the fronts meet they agree to rounding
+    owner = fm.distances(src).argmin(axis=0)
+    assert np.isclose(multi, single, rtol=1e-12).mean() > 0.8
+    assert len(np.unique(owner)) == len(src)
+    # repeated sources change nothing
+    np.testing.assert_array_equal(fm.distance(src + src), multi)
+
+
+def test_disconnected_components_are_infinite():
+    a, b = icosphere(2), icosphere(2)
+    v = np.vstack([a.vertices, np.asarray(b.vertices) + [5.0, 0.0, 0.0]])
+    f = np.vstack([a.faces, np.asarray(b.faces) + len(a.vertices)])
+    v = np.vstack([v, [[9.0, 9.0, 9.0]]])  # plus a vertex in no face
+    n1 = len(a.vertices)
+    fm = FastMarching(v, f)
+    d = fm.distance([0])
+    assert np.isfinite(d[:n1]).all()
+    assert np.isinf(d[n1:]).all()
+    D = fm.pairwise()
+    assert np.isinf(D[:n1, n1:]).all() and np.isinf(D[n1:, :n1]).all()
+    assert np.isfinite(D[:n1, :n1]).all() and np.isfinite(D[n1:-1, n1:-1]).all()
+    assert D[-1, -1] == 0.0
+    # the two copies agree
+    np.testing.assert_allclose(D[:n1, :n1], D[n1:-1, n1:-1], rtol=1e-12)
+
+
+def test_parallel_equals_serial(sphere3_solver):
+    fm = sphere3_solver
+    src = np.arange(0, fm.n_vertices, 7)
+    np.testing.assert_array_equal(fm.distances(src, parallel=True),
+                                  fm.distances(src, parallel=False))
+
+
+def test_boundary_nonmanifold_and_degenerate_faces_do_not_break_it():
+    v, f = _sheared_sheet()
+    # a degenerate (zero-area) sliver on the boundary and a fin sharing an interior edge
+    v = np.vstack([v, (v[0] + v[11]) / 2, v[12] + [0.0, 0.0, 0.3]])
+    k = len(v)
+    f = np.vstack([f, [[0, 11, k - 2]], [[12, 13, k - 1]]])
+    d = FastMarching(v, f).distance([0])
+    assert np.isfinite(d).all()
+    assert np.isclose(d[k - 2], np.linalg.norm(v[k - 2] - v[0]))
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [[], -1, 451, [0, 451], [0.0, 1.0], 1.5, [[0, 1], [2, 3]], "a", None, True, [True, False]],
+)
+def test_bad_sources_raise_value_error(bad):
+    v, f = _sheared_sheet()
+    fm = FastMarching(v, f)
+    for call in (fm.distance, fm.distances):
+        with pytest.raises(ValueError, match="sources"):
+            call(bad)
+
+
+def test_bad_sources_message_names_the_input():
+    v, f = _sheared_sheet()
+    fm = FastMarching(v, f)
+    with pytest.raises(ValueError, match="451"):
+        fm.distance([3, 451])
+    with pytest.raises(ValueError, match="float"):
+        fm.distances([0.5])
