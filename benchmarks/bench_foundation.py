@@ -30,6 +30,7 @@ import numpy as np
 
 import gromov
 from gromov.metrics import GeodesicSolver, GraphDiffusionSolver, HeatDiffusionSolver
+from gromov.shapes import icosphere
 
 HERE = Path(__file__).resolve().parent
 
@@ -72,7 +73,7 @@ def main(argv=None):
     t_ex, exact = best_of(lambda: GeodesicSolver(w, method="exact").from_sources(src), 1)
     exact_all = t_ex / len(src) * n
 
-    GeodesicSolver(gromov.shapes.icosphere(1)).pairwise()  # compile / load the numba cache
+    GeodesicSolver(icosphere(1)).pairwise()  # compile / load the numba cache
     t_fmm, d_fmm = best_of(lambda: GeodesicSolver(w, method="fmm").pairwise(), args.repeat)
 
     import potpourri3d as pp3d
