@@ -110,3 +110,49 @@ def test_demo_runs(capsys):
     assert main(["demo", "--samples", "5"]) == 0
     out = capsys.readouterr().out
     assert "geodesic" in out and "diffusion" in out and "covering radius" in out
+
+
+def test_match_json_and_out(tmp_path, capsys):
+    from gromov.shapes import grid, rolled_grid
+
+    x, y = tmp_path / "flat.off", tmp_path / "rolled.ply"
+    gromov.save(grid(21, 11), x)
+    gromov.save(rolled_grid(21, 11), y)
+    out = tmp_path / "m.npz"
+    rc = main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "--json",
+               "--out", str(out), "--seed", "1"])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    for key in ("distance", "relative_distance", "metric", "solver", "n_samples", "seconds"):
+        assert key in res
+    assert set(res["distortion"]) >= {"l2", "linf"}
+    assert res["metric"] == "geodesic" and res["solver"] == "gmds" and res["n_samples"] == 20
+    assert res["distance"] == pytest.approx(0.5 * res["distortion"]["l2"])
+    assert res["relative_distance"] < 0.01  # isometric shapes
+    z = np.load(out)
+    for side, other in (("x", "y"), ("y", "x")):
+        assert z[f"{side}_samples"].shape == (20,)
+        assert z[f"{side}_to_{other}_face"].shape == (20,)
+        assert z[f"{side}_to_{other}_bary"].shape == (20, 3)
+        assert z[f"{side}_to_{other}_vertex"].shape == (20,)
+    # same vertex numbering and isometric: each image is the sample itself or one of its
+    # images under the sheet's symmetries (mirror in u, in v, or both), the same for all
+    u, w = np.divmod(z["x_samples"], 11)
+    img = z["x_to_y_vertex"]
+    candidates = [u * 11 + w, (20 - u) * 11 + w, u * 11 + (10 - w), (20 - u) * 11 + (10 - w)]
+    assert max(np.mean(img == c) for c in candidates) >= 0.9
+
+
+def test_match_gw_solver_and_errors(tmp_path, capsys):
+    x = tmp_path / "s.off"
+    gromov.save(icosphere(2), x)
+    assert main(["match", str(x), str(x), "--metric", "euclidean", "--samples", "15",
+                 "--solver", "gw", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["solver"] == "gw" and np.isfinite(res["distance"]) and res["n_iter"] == 0
+    r = subprocess.run([sys.executable, "-m", "gromov", "match", str(x), str(x), "--samples", "500"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "more than the 162" in r.stderr
+    r = subprocess.run([sys.executable, "-m", "gromov", "match", str(x), str(x), "--norm", "l7x"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "norm" in r.stderr.splitlines()[-1]

@@ -218,6 +218,18 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *, co
     return best
 
 
+def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.ndarray:
+    """Images on X of points whose distances to the images of ``P`` are ``DY_rows`` (K, M).
+
+    Each point goes to the vertex v of X minimising sum_i (D_X(v, p_i) - d_i)^2: the
+    reverse map that is consistent with a given forward map, so that the two halves of the
+    two-sided correspondence start on the same branch (e.g. the same left/right choice).
+    """
+    A = DX[:, P]                                             # (n_X, M)
+    cost = (A * A).sum(1)[None, :] - 2.0 * DY_rows @ A.T     # + |d|^2, constant per row
+    return np.argmin(cost, axis=1).astype(np.int64)
+
+
 def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndarray:
     """The ``k`` vertices of ``target`` with the closest signatures, at least 5% of the diameter apart."""
     cost = np.abs(target.descriptors - signature).sum(axis=1)
@@ -314,8 +326,15 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     else:
         cand_y = _candidates(sx.descriptors[P[0]], sy, n_starts)
         cand_x = _candidates(sy.descriptors[Q[0]], sx, n_starts)
-        img_p0 = greedy_init(dx_pp, DY, cand_y)
-        img_q0 = greedy_init(dy_qq, DX, cand_x)
+        # each direction on its own, then the other direction anchored on it; keep the
+        # consistent pair with the lower two-sided distortion
+        fwd = greedy_init(dx_pp, DY, cand_y)
+        bwd = greedy_init(dy_qq, DX, cand_x)
+        pairs = [(fwd, anchored_images(DX, P, DY[np.ix_(Q, fwd)])),
+                 (anchored_images(DY, Q, DX[np.ix_(P, bwd)]), bwd)]
+        scores = [gm.distortion(SurfacePoints.at_vertices(sy.mesh, a), SurfacePoints.at_vertices(sx.mesh, b), 2.0)
+                  for a, b in pairs]
+        img_p0, img_q0 = pairs[int(np.argmin(scores))]
     img_p = SurfacePoints.at_vertices(sy.mesh, img_p0)
     img_q = SurfacePoints.at_vertices(sx.mesh, img_q0)
     n_iter, converged = 0, True

@@ -236,16 +236,20 @@ class SymmetricGMDS:
         w0 = self._base_weights()
         if self.p == 2.0:
             return self._l2_solve(img_p, img_q, w0)
-        # IRLS: weights |r|^(p-2); for L-infinity the exponent grows
-        exps = ([4.0, 8.0, 16.0, 32.0, 64.0][: self.irls_rounds] if np.isinf(self.p)
+        # IRLS: weights |r|^(p-2); for L-infinity the exponent grows. IRLS does not lower the
+        # target norm monotonically, so keep the best correspondence seen in that norm.
+        exps = ([4.0, 6.0, 8.0, 12.0, 16.0, 24.0][: self.irls_rounds] if np.isinf(self.p)
                 else [self.p] * self.irls_rounds)
-        img_p, img_q, total, conv = *self._l2_solve(img_p, img_q, w0)[:2], 0, False
+        img_p, img_q, total, conv = self._l2_solve(img_p, img_q, w0)
+        best = (self.distortion(img_p, img_q), img_p, img_q)
         for e in exps:
             dx, dy = self.blocks(img_p, img_q)
             r = np.abs(dx - dy)
-            floor = 1e-6 * max(r.max(), 1e-300)
-            w = w0 * np.maximum(r, floor) ** (e - 2.0)
-            w *= w0.sum() / max(w.sum(), 1e-300)
+            scale = max(float((r * (w0 > 0)).max()), 1e-300)
+            w = w0 * np.maximum(r / scale, 1e-3) ** (e - 2.0)
             img_p, img_q, n, conv = self._l2_solve(img_p, img_q, w)
             total += n
-        return img_p, img_q, total, conv
+            value = self.distortion(img_p, img_q)
+            if value < best[0]:
+                best = (value, img_p, img_q)
+        return best[1], best[2], total, conv

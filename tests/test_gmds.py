@@ -1,0 +1,120 @@
+"""GMDS and the Gromov-Hausdorff distance: facts on small shapes and TOSCA."""
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov import Mesh, match
+from gromov.gh import ShapeMetric
+from gromov.gmds import norm_value, parse_norm
+from gromov.shapes import grid, rolled_grid, torus
+
+
+def bumpy_torus() -> Mesh:
+    """A torus with an asymmetric bump field and irregular triangulation (no self-isometry,
+    and no automorphism of the connectivity graph that the connectivity kernel would see)."""
+    t = torus(80, 40)
+    v = t.vertices.copy()
+    ang = np.arctan2(v[:, 1], v[:, 0])
+    v *= (1 + 0.15 * np.exp(-((ang - 1.0) ** 2) / 0.2) + 0.05 * np.sin(3 * ang + 0.4))[:, None]
+    return gromov.simplify(Mesh(v, t.faces), 700).mesh
+
+
+def moved_and_permuted(m: Mesh, seed=0) -> Mesh:
+    rng = np.random.default_rng(seed)
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    perm = rng.permutation(m.n_vertices)
+    inv = np.argsort(perm)
+    return Mesh(m.vertices[perm] @ rot.T + rng.normal(size=3), inv[m.faces])
+
+
+@pytest.mark.parametrize("metric", ["geodesic", "diffusion", "euclidean"])
+def test_gh_of_a_moved_permuted_copy_is_zero(metric):
+    x = bumpy_torus()
+    y = moved_and_permuted(x)
+    r = match(x, y, metric, n_samples=30, resolution=None)
+    assert r.relative_distance < 1e-3
+    assert r.distortion_linf < 1e-3 * max(ShapeMetric(x, metric, resolution=None).diameter, 1e-12) * 10
+
+
+def test_isometric_sheet_and_half_cylinder_are_close():
+    flat, rolled = grid(31, 16), rolled_grid(31, 16)
+    near = match(flat, rolled, "geodesic", n_samples=40, resolution=None)
+    assert near.relative_distance < 0.01
+    # not isometric: a sheet twice as long
+    far = match(flat, grid(31, 16, width=2 * np.pi), "geodesic", n_samples=40, resolution=None)
+    assert far.relative_distance > 5 * near.relative_distance
+
+
+def test_l2_distortion_never_increases():
+    r = match(grid(31, 16), rolled_grid(31, 16), "geodesic", n_samples=40, resolution=None)
+    h = r.history
+    assert len(h) >= 2
+    assert np.all(np.diff(h) <= 1e-12 * h[0])
+
+
+def test_norms():
+    assert parse_norm("l2") == 2 and parse_norm("linf") == np.inf and parse_norm("p:1.5") == 1.5
+    with pytest.raises(ValueError, match="norm must be"):
+        parse_norm("l2.5x")
+    with pytest.raises(ValueError, match=">= 1"):
+        parse_norm("p:0.5")
+    assert norm_value([3.0, -4.0], 2) == pytest.approx(np.sqrt(12.5))
+    assert norm_value([3.0, -4.0], np.inf) == 4.0
+    x, y = grid(21, 11), rolled_grid(21, 11, height=1.3)
+    l2 = match(x, y, "geodesic", n_samples=25, resolution=None)
+    linf = match(x, y, "geodesic", n_samples=25, resolution=None, norm="linf")
+    assert linf.norm == "linf" and linf.distortion == linf.distortion_linf
+    assert linf.distance == pytest.approx(0.5 * linf.distortion_linf)
+    assert linf.distortion_linf <= l2.distortion_linf * 1.001
+
+
+def test_result_fields_and_gw_solver():
+    x, y = grid(21, 11), rolled_grid(21, 11)
+    for solver in ("gmds", "gw"):
+        r = match(x, y, "geodesic", n_samples=20, resolution=None, solver=solver)
+        assert r.solver == solver and r.n_samples == 20
+        d = r.to_dict()
+        assert set(d) >= {"distance", "relative_distance", "distortion", "metric", "solver",
+                          "n_samples", "seconds"}
+        assert set(d["distortion"]) >= {"l2", "linf"}
+        a = r.arrays()
+        assert a["x_samples"].shape == (20,) and a["x_to_y_bary"].shape == (20, 3)
+        np.testing.assert_allclose(a["x_to_y_bary"].sum(1), 1.0)
+        # the nearest vertex is a corner of the image face
+        assert np.all((y.faces[a["x_to_y_face"]] == a["x_to_y_vertex"][:, None]).any(1))
+
+
+def test_errors():
+    x = grid(11, 6)
+    with pytest.raises(ValueError, match="exceeds the 66 working vertices"):
+        match(x, x, "geodesic", n_samples=100, resolution=None)
+    with pytest.raises(ValueError, match="solver must be"):
+        match(x, x, "geodesic", n_samples=10, solver="icp", resolution=None)
+    with pytest.raises(ValueError, match="prepared for"):
+        match(ShapeMetric(x, "geodesic", resolution=None), x, "diffusion", n_samples=10)
+
+
+@pytest.fixture(scope="module")
+def tosca_shapes(data_dir):
+    names = ["cat0", "cat1", "dog0", "david0", "david1", "victoria0"]
+    return {n: gromov.load(data_dir / "tosca" / f"{n}.off.gz") for n in names}
+
+
+@pytest.mark.parametrize("metric", ["geodesic", "diffusion"])
+def test_same_class_is_closer_on_tosca(tosca_shapes, metric):
+    """GH(cat0, cat1) < GH(cat0, dog0) for both metrics; GH(david0, david1) < GH(david0, victoria0)
+    for diffusion.
+
+    For the geodesic metric the second inequality does NOT hold in our measurements: at 3,000
+    vertices and 100 samples GH(david0, david1) = 0.0084 and GH(david0, victoria0) = 0.0066 of
+    the diameter, and the ground-truth correspondence of david0/david1 itself has distortion
+    0.0141, above what GMDS finds -- the geodesic metric, not the optimiser, puts david1 (a
+    non-isometric pose) farther than victoria0 in the same reference pose. It is left out of
+    the assertion and reported on issue 3.
+    """
+    s = {n: ShapeMetric(m, metric, resolution=2000) for n, m in tosca_shapes.items()}
+    d = lambda a, b: match(s[a], s[b], metric, n_samples=60).relative_distance  # noqa: E731
+    assert d("cat0", "cat1") < d("cat0", "dog0")
+    if metric == "diffusion":
+        assert d("david0", "david1") < d("david0", "victoria0")
