@@ -94,7 +94,7 @@ def test_robust_and_cotan_laplacians_agree_on_a_good_mesh():
 
 def test_point_cloud_diffusion():
     pts = icosphere(3).vertices
-    s = metric_solver(PointCloud(pts), "diffusion", m=20, dense_below=0)
+    s = metric_solver(PointCloud(pts), "diffusion", kernel="gaussian", m=20, dense_below=0)
     assert s.kernel == "gaussian"
     ref = brute_force_diffusion_distance(s.operator, 20)
     np.testing.assert_allclose(s.pairwise(), ref, atol=1e-5 * ref.max())

@@ -37,8 +37,11 @@ def test_r_covering_and_matrix_input():
     s = GeodesicSolver(icosphere(3))
     fps = farthest_point_sampling(s, radius=0.5, seed=0)
     assert fps.radius <= 0.5 and fps.radii[-2] > 0.5
-    # a dense matrix gives the same samples as the solver it came from
-    diff = metric_solver(icosphere(3), "diffusion")
+    # a dense matrix gives the same samples as the solver it came from (on an irregular mesh:
+    # exact ties between rounding-different computations would make the choice arbitrary)
+    from gromov import simplify
+
+    diff = metric_solver(simplify(icosphere(4), 500).mesh, "diffusion")
     a = farthest_point_sampling(diff, 30, seed=0)
     b = farthest_point_sampling(diff.pairwise(), 30, seed=0)
     np.testing.assert_array_equal(a.indices, b.indices)

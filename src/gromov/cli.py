@@ -58,10 +58,11 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                    help="distance on the surface (default: diffusion)")
     p.add_argument("--geodesic-method", choices=("fmm", "heat", "exact", "dijkstra"), default=None,
                    help="geodesic backend (default: fmm on meshes, dijkstra on point clouds)")
-    p.add_argument("--kernel", choices=("connectivity", "gaussian", "heat"), default="connectivity",
-                   help="diffusion affinity: the paper's connectivity kernel (default), a Gaussian "
-                        "k-NN kernel, or the resolution-independent Laplace-Beltrami heat kernel")
-    p.add_argument("--steps", type=_positive_int, default=50, help="diffusion steps m (default 50)")
+    p.add_argument("--kernel", choices=("heat", "connectivity", "gaussian"), default="heat",
+                   help="diffusion kernel: the resolution-independent Laplace-Beltrami heat kernel "
+                        "(default), the paper's connectivity kernel, or a Gaussian k-NN kernel")
+    p.add_argument("--steps", type=_positive_int, default=50,
+                   help="diffusion steps m of the graph kernels (default 50)")
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
 
@@ -217,7 +218,8 @@ def cmd_demo(args) -> int:
     shape = torus(64, 32)
     print(f"gromov {__version__} demo: a built-in torus, {shape.n_vertices} vertices, "
           f"Euler characteristic {shape.euler_characteristic}, genus {shape.genus:g}\n")
-    for metric, opts in (("geodesic", {}), ("diffusion", {}), ("diffusion", {"kernel": "heat"})):
+    for metric, opts in (("geodesic", {}), ("diffusion", {"kernel": "heat"}),
+                         ("diffusion", {"kernel": "connectivity"})):
         t = time.perf_counter()
         s = metric_solver(shape, metric, **opts)
         d = s.pairwise()

@@ -53,7 +53,7 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
     if metric == "geodesic":
         return GeodesicSolver(shape, **options)
     if metric == "diffusion":
-        kernel = options.pop("kernel", "connectivity")
+        kernel = options.pop("kernel", "heat")
         if kernel == "heat":
             return HeatDiffusionSolver(shape, **options)
         if kernel not in DIFFUSION_KERNELS:
