@@ -244,29 +244,40 @@ def greedy_place(dx, DY, start, m):
 
 
 @njit(cache=True)
-def discrete_descent(dx, DY, img, max_sweeps):
-    """Gauss-Seidel over images: move each to the vertex of Y (any vertex) minimising
-    sum_j (dx[i, j] - DY[v, img[j]])^2; never increases the one-sided distortion."""
+def _descent_moves(dx, DY, img, C, max_sweeps):
     n = DY.shape[0]
     m = img.shape[0]
-    img = img.copy()
-    cost = np.empty(n)
     for _ in range(max_sweeps):
         moved = 0
         for i in range(m):
-            cost[:] = 0.0
-            for j in range(m):
-                if j == i:
-                    continue
-                col = img[j]
-                t = dx[i, j]
-                for v in range(n):
-                    r = DY[col, v] - t  # DY is symmetric: read rows, not columns
-                    cost[v] += r * r
-            v = np.argmin(cost)
-            if cost[v] < cost[img[i]] * (1.0 - 1e-12):
+            row = C[i]
+            v = np.argmin(row)
+            old = img[i]
+            if row[v] < row[old] * (1.0 - 1e-12):
                 img[i] = v
                 moved += 1
+                # every other image's cost changes through the moved one
+                for k in range(m):
+                    if k == i:
+                        continue
+                    t = dx[k, i]
+                    for u in range(n):
+                        a = t - DY[v, u]
+                        b = t - DY[old, u]
+                        C[k, u] += a * a - b * b
         if moved == 0:
             break
     return img
+
+
+def discrete_descent(dx, DY, img, max_sweeps):
+    """Gauss-Seidel over images: move each to the vertex of Y (any vertex) minimising
+    ``C[i, v] = sum_{j != i} (dx[i, j] - DY[v, img[j]])^2``; never increases the one-sided
+    distortion. ``C`` is formed once with a matrix product and then updated per move."""
+    img = np.array(img, dtype=np.int64)
+    dx = np.ascontiguousarray(dx, dtype=np.float64)
+    rows = DY[img]                                  # (m, n): DY[img_j, v] (DY symmetric)
+    sq = rows * rows
+    C = (dx * dx).sum(1)[:, None] - 2.0 * (dx @ rows) + sq.sum(0)[None, :]
+    C -= sq                                         # drop j == i (dx[i, i] = 0)
+    return _descent_moves(dx, DY, img, C, max_sweeps)

@@ -69,6 +69,7 @@ class ShapeMetric:
         self._surface: SurfaceDistance | None = None
         self._samples: dict = {}
         self._descriptors: np.ndarray | None = None
+        self._diameter: float | None = None
 
     @property
     def mesh(self) -> Mesh:
@@ -87,8 +88,11 @@ class ShapeMetric:
 
     @property
     def diameter(self) -> float:
-        d = self.distances
-        return float(d[np.isfinite(d)].max())
+        """Largest finite distance between working vertices (computed once)."""
+        if self._diameter is None:
+            d = self.distances
+            self._diameter = float(d[np.isfinite(d)].max())
+        return self._diameter
 
     @property
     def descriptors(self) -> np.ndarray:
