@@ -232,6 +232,21 @@ def cmd_demo(args) -> int:
               + ", ".join(f"{r:.3g}" for r in fps.radii) + ")")
         print("  distances between the first 6 samples:")
         print("  " + str(s.submatrix(fps.indices[:6])).replace("\n", "\n  ") + "\n")
+
+    from .gh import match
+    from .shapes import grid, rolled_grid
+
+    print("Gromov-Hausdorff distances (GMDS, 40 samples, geodesic and diffusion), relative to the diameter:")
+    sheet = grid(31, 16)
+    others = {"the same sheet rolled into a half-cylinder (isometric)": rolled_grid(31, 16),
+              "a sheet twice as long": grid(41, 11, width=2 * np.pi),
+              "the torus": shape}
+    for label, other in others.items():
+        vals = []
+        for metric in ("geodesic", "diffusion"):
+            r = match(sheet, other, metric, n_samples=40, resolution=None, seed=args.seed)
+            vals.append(f"{metric} {r.relative_distance:.4f}")
+        print(f"  sheet vs {label}: " + ", ".join(vals))
     return 0
 
 
