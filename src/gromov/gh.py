@@ -103,10 +103,11 @@ class ShapeMetric:
         images for the first sample of the greedy initialisation.
         """
         if self._descriptors is None:
-            d = self.distances
-            qs = np.linspace(0.0, 1.0, 17)[1:]
-            self._descriptors = np.quantile(np.where(np.isfinite(d), d, np.nan), qs, axis=1,
-                                            method="nearest").T.copy()
+            # distances to 256 farthest point samples stand for the whole distribution
+            cols = self.samples(min(256, self.mesh.n_vertices), 0)
+            d = np.sort(self.distances[:, cols], axis=1)
+            idx = np.round(np.linspace(0.0, 1.0, 17)[1:] * (d.shape[1] - 1)).astype(int)
+            self._descriptors = np.ascontiguousarray(d[:, idx])
         return self._descriptors
 
     def samples(self, n: int, seed: int = 0) -> np.ndarray:

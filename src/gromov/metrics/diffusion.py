@@ -355,27 +355,29 @@ class HeatDiffusionSolver(_SpectralDiffusion):
                               "isolated vertices first (gromov.repair)")
 
     def _compute_embedding(self):
-        n, t = self.n_vertices, self.t
+        n, t, area = self.n_vertices, self.t, self.area
         max_inv_mass = float((1.0 / self.mass.diagonal()).max())
-        sigma = -1e-8 / max(self.area, 1e-300)
-        k = min(n - 2, 64)
-        lam_star = None
+        sigma = -1e-8 / max(area, 1e-300)
+        # First guess of the number of eigenpairs from Weyl's law, lambda_k ~ 4 pi k / area:
+        # mean d^2 ~ 2 sum_k exp(-2 lambda_k t) / area ~ 2 / (area (1 - exp(-8 pi tau))), and
+        # the terms beyond lambda* = log(2 max(1/M) / (rtol mean d^2)) / (2t) are negligible.
+        scale = 2.0 / (area * (1.0 - np.exp(-8.0 * np.pi * self.tau)))
+        lam_star = np.log(2.0 * max_inv_mass / (self.rtol * scale)) / (2.0 * t)
+        k = int(min(n - 2, max(32, np.ceil(1.15 * lam_star * area / (4.0 * np.pi)) + 8)))
         while True:
-            lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
-            order = np.argsort(lam)
-            lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
-            psi = phi * np.exp(-lam * t)
-            if lam_star is None:
-                # eigenvalue above which every dropped term is negligible
-                scale = self._mean_sq(psi)
-                lam_star = np.log(2.0 * max_inv_mass / (self.rtol * scale)) / (2.0 * t)
-            if lam[-1] >= lam_star or k >= n - 2:
-                break
-            k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
             if k > n // 3:
                 lam, phi = _dense_generalized(self.stiffness, self.mass)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
                 return phi * np.exp(-np.maximum(lam, 0.0) * t)
+            lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
+            order = np.argsort(lam)
+            lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
+            psi = phi * np.exp(-lam * t)
+            # the bound with the measured mean d^2 decides
+            lam_star = np.log(2.0 * max_inv_mass / (self.rtol * self._mean_sq(psi))) / (2.0 * t)
+            if lam[-1] >= lam_star or k >= n - 2:
+                break
+            k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
         self.eigenvalues = lam
         self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass)
         return psi
