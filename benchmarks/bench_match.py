@@ -33,8 +33,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import gromov
+from gromov.evaluate import correspondence_error
 from gromov.gh import ShapeMetric, match
-from gromov.metrics import GeodesicSolver
 
 HERE = Path(__file__).resolve().parent
 CLASSES = ("cat", "dog", "david", "victoria")
@@ -79,21 +79,16 @@ def main(argv=None):
         for metric in ("geodesic", "diffusion"):
             shapes[metric] = (ShapeMetric(x_in, metric, resolution=args.resolution),
                               ShapeMetric(y_in, metric, resolution=args.resolution))
-        ywork = shapes["geodesic"][1]
-        dgeo = ywork.distances  # geodesic (fast marching) on cls1's working mesh
-        diam = ywork.diameter
+        ywork = shapes["geodesic"][1]  # errors: geodesic (fast marching) on cls1's working mesh
         for metric in ("geodesic", "diffusion"):
             sx, sy = shapes[metric]
             for solver in ("gmds", "gw"):
                 t = time.perf_counter()
                 r = match(sx, sy, metric, n_samples=args.samples, solver=solver)
                 dt = time.perf_counter() - t
-                img = ywork.working.from_source(r.x_to_y_vertex)
-                e_dir = dgeo[img, ywork.working.from_source(r.x_samples)] / diam
-                e_mir = dgeo[img, ywork.working.from_source(sym[r.x_samples])] / diam
-                row = {"direct": float(e_dir.mean()), "mirrored": float(e_mir.mean()),
-                       "best": float(min(e_dir.mean(), e_mir.mean())),
-                       "relative_distance": r.relative_distance, "seconds": dt}
+                err = correspondence_error(r, ywork, symmetry=sym)
+                row = {"direct": err.mean, "mirrored": err.mirrored_mean, "best": err.best,
+                       "branch": err.branch, "relative_distance": r.relative_distance, "seconds": dt}
                 res["accuracy"][f"{cls}0-{cls}1/{metric}/{solver}"] = row
                 print(f"    {cls + '0 -> ' + cls + '1':<22}{metric:<11}{solver:<7}{row['direct']:>9.4f}"
                       f"{row['mirrored']:>10.4f}{row['best']:>8.4f}{r.relative_distance:>9.4f}{dt:>9.2f}")

@@ -118,3 +118,27 @@ def test_same_class_is_closer_on_tosca(tosca_shapes, metric):
     assert d("cat0", "cat1") < d("cat0", "dog0")
     if metric == "diffusion":
         assert d("david0", "david1") < d("david0", "victoria0")
+
+
+def test_correspondence_error_reports_the_branch():
+    from gromov.evaluate import correspondence_error
+
+    # a trapezoid: mirror-symmetric in u only; y is a rigidly moved copy (same numbering)
+    g = grid(21, 11)
+    v = g.vertices.copy()
+    v[:, 0] = np.pi / 2 + (v[:, 0] - np.pi / 2) * (1 + 0.5 * v[:, 1])
+    x = Mesh(v, g.faces)
+    y = Mesh(v[:, [1, 0, 2]] * [1, -1, 1] + 2.0, g.faces[:, ::-1])
+    sy = ShapeMetric(y, "geodesic", resolution=None)
+    r = match(x, sy, "geodesic", n_samples=20, resolution=None)
+    idx = np.arange(x.n_vertices)
+    u, w = np.divmod(idx, 11)
+    mirror_u = (20 - u) * 11 + w  # the trapezoid's left/right symmetry
+    err = correspondence_error(r, sy, symmetry=mirror_u)
+    # the match is an isometry: one of the two readings is (nearly) exact
+    assert err.best < 0.02
+    assert err.branch == ("direct" if err.mean <= err.mirrored_mean else "mirrored")
+    # the branch is the one whose reading is exact; the other one is far off
+    assert max(err.mean, err.mirrored_mean) > 0.1
+    with pytest.raises(ValueError, match="not a vertex"):
+        sy.input.from_input_ids([10**6])

@@ -112,6 +112,24 @@ class PointCloud:
     def n_vertices(self) -> int:
         return self._vertices.shape[0]
 
+    def from_input_ids(self, ids) -> np.ndarray:
+        """Vertex indices of this shape for ids of the user's input (inverse of ``input_ids``).
+
+        Raises ``ValueError`` for an id that is not (or no longer, after repair) a vertex.
+        """
+        if not hasattr(self, "_input_inverse"):
+            inv = np.full(int(self._input_ids.max()) + 1, -1, dtype=np.int64)
+            inv[self._input_ids] = np.arange(self.n_vertices)
+            inv.flags.writeable = False
+            self._input_inverse = inv
+        ids = np.asarray(ids, dtype=np.int64)
+        inv = self._input_inverse
+        bad = (ids < 0) | (ids >= len(inv))
+        out = np.where(bad, -1, inv[np.clip(ids, 0, len(inv) - 1)])
+        if (out < 0).any():
+            raise ValueError(f"input vertex id {int(ids[out < 0][0])} is not a vertex of this shape")
+        return out
+
     @cached_property
     def bbox(self) -> np.ndarray:
         """``(2, 3)`` array: minimum and maximum corner."""
@@ -317,7 +335,7 @@ class Mesh(PointCloud):
             used[start] = True
             a, b = int(be[start, 0]), int(be[start, 1])
             loop = [a]
-            prev, cur = a, b
+            cur = b
             while cur != a:
                 loop.append(cur)
                 nxt = None
@@ -330,7 +348,7 @@ class Mesh(PointCloud):
                         break
                 if nxt is None:  # open chain (non-manifold boundary); stop here
                     break
-                prev, cur = cur, nxt
+                cur = nxt
             loops.append(np.asarray(loop, dtype=np.int64))
         loops.sort(key=len, reverse=True)
         return loops

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 from scipy.spatial.distance import cdist
 
 from ._base import MetricSolver, check_shape
