@@ -145,6 +145,9 @@ class MatchResult:
         Input vertex ids of the samples.
     x_to_y_face, x_to_y_bary, x_to_y_vertex : ndarray
         Images of X's samples on Y's input mesh: face, barycentric coordinates, nearest vertex.
+        Vertex ids are the file's numbering. Face ids are the file's too unless loading had to
+        drop degenerate or repeated faces (a ``GromovWarning`` says so); then they index the
+        repaired mesh's faces.
     y_to_x_face, y_to_x_bary, y_to_x_vertex : ndarray
         The same for Y's samples on X.
     """
