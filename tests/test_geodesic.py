@@ -95,9 +95,10 @@ def test_tosca_cat_fast_marching_against_exact(cat_working):
     """Fast marching vs exact MMP on the 3,000-vertex cat: mean relative error below 1%.
 
     The issue's second target, max <= 3%, is NOT met on this mesh: a handful of pairs a few
-    edges from the source, behind badly shaped triangles, reach 6-9% (measured: mean 0.36%,
-    99th percentile 1.1%, max 8.5%). The 99th percentile is asserted so that a regression of
-    the bulk shows; the max is reported, not hidden.
+    edges from the source, next to strong saddle vertices and sliver faces, reach 8-10%
+    (measured: mean 0.20%, 99th percentile 0.93%, max 8.5% from 12 sources). The mean and the
+    99th percentile are asserted so that a regression of the bulk shows; the max is reported
+    on the issue, not hidden.
     """
     w = cat_working.mesh
     src = np.random.default_rng(0).choice(w.n_vertices, 12, replace=False)
@@ -105,5 +106,5 @@ def test_tosca_cat_fast_marching_against_exact(cat_working):
     exact = GeodesicSolver(w, method="exact").from_sources(src)
     off = exact > 0
     rel = np.abs(fmm - exact)[off] / exact[off]
-    assert rel.mean() < 0.01
-    assert np.quantile(rel, 0.99) < 0.015
+    assert rel.mean() < 0.005
+    assert np.quantile(rel, 0.99) < 0.012
