@@ -156,3 +156,19 @@ def test_match_gw_solver_and_errors(tmp_path, capsys):
     r = subprocess.run([sys.executable, "-m", "gromov", "match", str(x), str(x), "--norm", "l7x"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "norm" in r.stderr.splitlines()[-1]
+
+
+def test_perturb_writes_mesh_and_ground_truth(tmp_path, capsys):
+    src = tmp_path / "sphere.off"
+    gromov.save(icosphere(4), src)
+    out = tmp_path / "holed.ply"
+    assert main(["perturb", "holes", str(src), str(out), "--count", "5", "--seed", "2"]) == 0
+    assert "boundary loops 0 -> 5" in capsys.readouterr().out
+    holed = gromov.load(out)
+    z = np.load(tmp_path / "holed.map.npz")
+    assert len(holed.boundary_loops) == 5 and holed.euler_characteristic == 2 - 5
+    # output vertex i is input vertex vertex_map[i]
+    np.testing.assert_array_equal(holed.vertices, icosphere(4).vertices[z["vertex_map"]])
+    r = subprocess.run([sys.executable, "-m", "gromov", "perturb", "weld", str(src), str(out),
+                        "--count", "2"], capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "weld site" in r.stderr

@@ -8,6 +8,7 @@ The pipeline, one module each: ``io`` (load/save) -> ``mesh`` (Mesh, PointCloud)
 ``sampling`` (farthest points) -> ``gmds`` / ``gh`` (GMDS, the Gromov-Hausdorff distance).
 """
 
+from . import perturb
 from .errors import GromovError, GromovWarning, MeshError, MeshFormatError, MetricError
 from .gh import MatchResult, ShapeMetric, match
 from .io import load, save
@@ -32,6 +33,6 @@ __all__ = [
     "MetricSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver",
     "EuclideanSolver", "metric_solver", "distance_matrix",
     "WorkingMesh", "simplify", "working_mesh", "Samples", "farthest_point_sampling",
-    "ShapeMetric", "MatchResult", "match",
+    "ShapeMetric", "MatchResult", "match", "perturb",
     "__version__",
 ]

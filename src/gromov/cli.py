@@ -209,6 +209,36 @@ def cmd_match(args) -> int:
     return 0
 
 
+def cmd_perturb(args) -> int:
+    from .io import save
+    from .mesh import Mesh
+    from .perturb import holes, weld
+
+    shape = _load(args.input)
+    if not isinstance(shape, Mesh):
+        raise _UserError(f"{args.input}: perturbations need a triangle mesh, got a point cloud")
+    fn = weld if args.kind == "weld" else holes
+    p = fn(shape, args.count, radius=args.radius, seed=args.seed)
+    out = Path(args.output)
+    if out.parent and not out.parent.exists():
+        raise _UserError(f"output folder {out.parent} does not exist")
+    save(p.mesh, out)
+    # ground truth: output vertex i is input vertex vertex_map[i] (file numbering)
+    name = out.name
+    for ext in (".gz", ".off", ".obj", ".ply", ".stl", ".vert", ".tri"):
+        if name.endswith(ext):
+            name = name[: -len(ext)]
+    sidecar = out.with_name(name + ".map.npz")
+    np.savez_compressed(sidecar, vertex_map=shape.input_ids[p.vertex_map].astype(np.int64),
+                        sites=shape.input_ids[p.sites].astype(np.int64), kind=p.kind,
+                        euler_before=p.euler_before, euler_after=p.euler_after,
+                        params=json.dumps(p.params, default=float))
+    print(f"{args.input} -> {out}: {args.kind} x{args.count}, Euler characteristic "
+          f"{p.euler_before} -> {p.euler_after}, boundary loops {p.boundary_loops_before} -> "
+          f"{p.boundary_loops_after}; ground-truth vertex map in {sidecar}")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .metrics import metric_solver
     from .sampling import farthest_point_sampling
@@ -291,6 +321,16 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_match)
+
+    q = sub.add_parser("perturb", help="topological noise: weld close parts, or punch holes")
+    q.add_argument("kind", choices=("weld", "holes"))
+    q.add_argument("input")
+    q.add_argument("output")
+    q.add_argument("--count", type=_positive_int, required=True, help="number of welds or holes")
+    q.add_argument("--radius", type=float, default=None,
+                   help="weld: search radius for close pairs; holes: geodesic radius (defaults in the docs)")
+    q.add_argument("--seed", type=int, default=0)
+    q.set_defaults(func=cmd_perturb)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")
     q.add_argument("--samples", type=_positive_int, default=12)
