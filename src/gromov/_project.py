@@ -84,18 +84,21 @@ def _project(points, V, F, vf_indptr, vf_ids, candidates):
     return face, bary, dist
 
 
-def project_points(points: np.ndarray, mesh, *, k: int = 4):
+def project_points(points: np.ndarray, mesh, *, k: int = 4, tree=None):
     """Project points onto ``mesh``: nearest point among faces around the ``k`` nearest vertices.
 
     Returns ``(face, bary, dist)``: ``(p,)`` face index, ``(p, 3)`` barycentric coordinates
     (non-negative, summing to one) and ``(p,)`` Euclidean distance to the surface point.
     Exact when the closest surface point lies on a face incident to one of the ``k``
-    nearest vertices, which holds for points near a reasonably shaped mesh.
+    nearest vertices, which holds for points near a reasonably shaped mesh. ``tree`` is a
+    ``scipy.spatial.cKDTree`` of ``mesh.vertices`` to reuse (built here when not given).
     """
     from scipy.spatial import cKDTree
 
     k = min(k, mesh.n_vertices)
-    _, cand = cKDTree(mesh.vertices).query(points, k=k)
+    if tree is None:
+        tree = cKDTree(mesh.vertices)
+    _, cand = tree.query(points, k=k)
     cand = np.asarray(cand, dtype=np.int64).reshape(len(points), k)
     indptr, ids = mesh.vertex_faces
     return _project(np.ascontiguousarray(points, dtype=np.float64), mesh.vertices, mesh.faces,

@@ -70,6 +70,7 @@ class ShapeMetric:
         self._samples: dict = {}
         self._descriptors: np.ndarray | None = None
         self._diameter: float | None = None
+        self._tree = None
 
     @property
     def mesh(self) -> Mesh:
@@ -120,7 +121,11 @@ class ShapeMetric:
     def locate(self, pts: SurfacePoints):
         """Carry points on the working mesh to the input mesh: (face, bary, nearest vertex) there."""
         pos = pts.positions(self.mesh.vertices, self.mesh.faces)
-        face, bary, _ = project_points(pos, self.input)
+        if self._tree is None:  # per shape, not per match
+            from scipy.spatial import cKDTree
+
+            self._tree = cKDTree(self.input.vertices)
+        face, bary, _ = project_points(pos, self.input, tree=self._tree)
         vertex = self.input.faces[face, np.argmax(bary, axis=1)]
         return face, bary, self.input.input_ids[vertex]
 
