@@ -1,0 +1,411 @@
+"""Recognition measures: ROC curves, the equal error rate and MDS maps of shape distances.
+
+Bronstein, Bronstein, Mahmoudi, Kimmel & Sapiro, "A Gromov-Hausdorff framework with
+diffusion geometry for topologically-robust non-rigid shape matching", IJCV 89 (2010),
+§5, judge a shape distance by how well it separates shapes of the same class from shapes of
+different classes: every pair of shapes is a recognition trial, accepted as "same" when its
+distance is at most a threshold ``t``. The false acceptance rate ``FAR(t)`` and the false
+rejection rate ``FRR(t)`` trace the ROC curve (their Figs. 6-7); the equal error rate
+(EER), where ``FAR = FRR``, sums it up in one number (their Table 1). The distance matrices
+are also shown as two-dimensional classical MDS maps (their Figs. 4-5), where a good distance
+draws tight, separated clusters of classes.
+
+- :func:`roc` and :func:`equal_error_rate` compute the exact ROC curve and the EER;
+- :func:`mds_map` embeds a distance matrix in the plane (classical, Torgerson MDS);
+- :func:`plot_roc` and :func:`plot_mds` draw them to PNG files (needs ``gromov[plot]``).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["ROC", "roc", "equal_error_rate", "mds_map", "plot_roc", "plot_mds"]
+
+logger = logging.getLogger(__name__)
+
+#: Above this many shapes, :func:`mds_map` uses an iterative eigensolver (seeded).
+_DENSE_MAX = 1000
+
+
+@dataclass(frozen=True, eq=False)
+class ROC:
+    """Exact ROC curve of a distance matrix as a same-class detector.
+
+    Attributes
+    ----------
+    thresholds : ndarray of float64, shape (k,)
+        ``-inf``, every distinct pair distance in increasing order, then ``+inf``.
+    far : ndarray of float64, shape (k,)
+        False acceptance rate at each threshold: the fraction of negative (different-class)
+        pairs with distance ``<= t``. Non-decreasing, from 0 to 1.
+    frr : ndarray of float64, shape (k,)
+        False rejection rate at each threshold: the fraction of positive (same-class) pairs
+        with distance ``> t``. Non-increasing, from 1 to 0.
+    eer : float
+        Equal error rate: where the polyline through the points ``(far[i], frr[i])`` crosses
+        the diagonal ``FAR = FRR`` (see :func:`roc`).
+    eer_threshold : float
+        The smallest threshold at which ``FAR(t) >= FRR(t)``.
+    n_positive, n_negative : int
+        Numbers of positive and negative pairs the rates are fractions of.
+
+    All arrays are read-only.
+    """
+
+    thresholds: np.ndarray
+    far: np.ndarray
+    frr: np.ndarray
+    eer: float
+    eer_threshold: float
+    n_positive: int
+    n_negative: int
+
+
+def _check_distances(distances, name: str = "distances", *, rtol: float = 1e-8) -> np.ndarray:
+    """Coerce to a square, finite, symmetric float64 matrix or raise ``ValueError``."""
+    d = np.asarray(distances, dtype=np.float64)
+    if d.ndim != 2 or d.shape[0] != d.shape[1]:
+        raise ValueError(f"{name} must be a square (n, n) matrix, got shape {d.shape}")
+    if not np.all(np.isfinite(d)):
+        bad = int(np.count_nonzero(~np.isfinite(d)))
+        raise ValueError(f"{name} must be finite, got {bad} NaN or infinite entries")
+    scale = max(1.0, float(np.abs(d).max(initial=0.0)))
+    asym = float(np.abs(d - d.T).max(initial=0.0))
+    if asym > rtol * scale:
+        raise ValueError(
+            f"{name} must be symmetric, got max |D - D^T| = {asym:.3g} "
+            f"(tolerance {rtol * scale:.3g}); symmetrise it first, e.g. max(D, D^T)")
+    return d
+
+
+def _check_labels(labels, n: int) -> np.ndarray:
+    lab = np.asarray(labels)
+    if lab.ndim != 1 or lab.shape[0] != n:
+        raise ValueError(f"labels must be a 1-D array of length n = {n}, got shape {lab.shape}")
+    return lab
+
+
+def roc(distances, labels, *, mask=None, pairs: str = "upper") -> ROC:
+    """Exact ROC curve and equal error rate of a shape distance matrix.
+
+    Every pair of shapes ``(i, j)`` is a trial; it is *positive* when
+    ``labels[i] == labels[j]`` and is *accepted* at threshold ``t`` when ``D[i, j] <= t``:
+
+    .. math::
+
+        \\mathrm{FAR}(t) = \\frac{|\\{(i,j) \\in N : D_{ij} \\le t\\}|}{|N|}, \\qquad
+        \\mathrm{FRR}(t) = \\frac{|\\{(i,j) \\in P : D_{ij} > t\\}|}{|P|},
+
+    with ``P`` and ``N`` the positive and negative pairs (Bronstein et al., IJCV 2010, §5).
+    Both rates are step functions that change only at pair distances, so evaluating them at
+    every distinct distance (plus ``-inf`` and ``+inf``) gives the curve exactly.
+
+    **Equal error rate.** Let ``(a_i, r_i) = (FAR(t_i), FRR(t_i))`` at the thresholds
+    ``t_0 < t_1 < ...``; ``g_i = a_i - r_i`` is non-decreasing from -1 to 1. With ``k`` the
+    first index where ``g_k >= 0``, the EER is where the segment from ``(a_{k-1}, r_{k-1})``
+    to ``(a_k, r_k)`` crosses the diagonal:
+
+    .. math::
+
+        \\lambda = \\frac{-g_{k-1}}{g_k - g_{k-1}}, \\qquad
+        \\mathrm{EER} = a_{k-1} + \\lambda (a_k - a_{k-1}) = r_{k-1} + \\lambda (r_k - r_{k-1}),
+
+    which is ``a_k = r_k`` when ``g_k = 0``. When one step moves only one rate (no positive
+    pair ties a negative one) this equals ``min_t max(FAR(t), FRR(t))``; on ties it is the
+    error of a threshold that accepts the tied pairs at random, so a constant matrix, which
+    cannot tell pairs apart, scores 0.5 rather than 1. The EER is invariant under any
+    strictly increasing transformation of the distances.
+
+    Parameters
+    ----------
+    distances : array_like, shape (n, n)
+        Symmetric (up to ``1e-8`` relative to ``max(1, max|D|)``), finite distances. The
+        diagonal is never used.
+    labels : array_like, shape (n,)
+        Class of each shape (any values comparable with ``==``).
+    mask : array_like of bool, shape (n, n), optional
+        Only pairs with ``mask[i, j]`` true are trials, e.g. pairs involving a perturbed shape.
+        Default: all pairs.
+    pairs : {"upper", "all"}, default "upper"
+        ``"upper"``: the unordered pairs ``i < j``, each counted once. ``"all"``: the ordered
+        pairs ``i != j``, for an asymmetric ``mask`` (e.g. queries in rows against a gallery
+        in columns); with a symmetric mask it gives the same curve as ``"upper"``.
+
+    Returns
+    -------
+    ROC
+
+    Raises
+    ------
+    ValueError
+        If ``distances`` is not square, finite and symmetric, ``labels`` is not of length n,
+        ``mask`` has the wrong shape or type, ``pairs`` is unknown, or the chosen pairs lack
+        a positive or a negative pair.
+    """
+    d = _check_distances(distances)
+    n = d.shape[0]
+    lab = _check_labels(labels, n)
+    if pairs == "upper":
+        sel = np.triu(np.ones((n, n), dtype=bool), k=1)
+    elif pairs == "all":
+        sel = ~np.eye(n, dtype=bool)
+    else:
+        raise ValueError(f"pairs must be 'upper' or 'all', got {pairs!r}")
+    if mask is not None:
+        m = np.asarray(mask)
+        if m.shape != (n, n) or m.dtype != bool:
+            raise ValueError(
+                f"mask must be a boolean (n, n) = ({n}, {n}) array, "
+                f"got shape {m.shape} and dtype {m.dtype}")
+        sel &= m
+    same = lab[:, None] == lab[None, :]
+    pos = np.sort(d[sel & same])
+    neg = np.sort(d[sel & ~same])
+    if pos.size == 0 or neg.size == 0:
+        raise ValueError(
+            f"need at least one positive (same-label) and one negative pair, got "
+            f"{pos.size} positive and {neg.size} negative pairs among the selected ones")
+    inner = np.unique(np.concatenate([pos, neg]))
+    n_pos_acc = np.searchsorted(pos, inner, side="right")
+    n_neg_acc = np.searchsorted(neg, inner, side="right")
+    thresholds = np.concatenate([[-np.inf], inner, [np.inf]])
+    far = np.concatenate([[0.0], n_neg_acc / neg.size, [1.0]])
+    frr = np.concatenate([[1.0], (pos.size - n_pos_acc) / pos.size, [0.0]])
+    g = far - frr
+    k = int(np.argmax(g >= 0))  # g[-1] == 1 so a crossing exists; g[0] == -1 so k >= 1
+    if g[k] == 0:
+        eer = float(far[k])
+    else:
+        lam = -g[k - 1] / (g[k] - g[k - 1])
+        eer = float(far[k - 1] + lam * (far[k] - far[k - 1]))
+    for a in (thresholds, far, frr):
+        a.setflags(write=False)
+    return ROC(thresholds, far, frr, eer, float(thresholds[k]), int(pos.size), int(neg.size))
+
+
+def equal_error_rate(distances, labels, *, mask=None, pairs: str = "upper") -> float:
+    """Equal error rate of a distance matrix: ``roc(distances, labels, ...).eer``.
+
+    See :func:`roc` for the definition, the parameters and the errors raised.
+    """
+    return roc(distances, labels, mask=mask, pairs=pairs).eer
+
+
+def mds_map(distances, dim: int = 2, *, seed: int = 0) -> np.ndarray:
+    """Classical (Torgerson) multidimensional scaling of a distance matrix.
+
+    With ``J = I - 11^T / n`` the centring matrix, the Gram matrix of the centred
+    configuration is
+
+    .. math::
+
+        B = -\\tfrac12 J (D \\circ D) J, \\qquad X = V_d \\Lambda_d^{1/2},
+
+    where ``Λ_d, V_d`` are the ``dim`` largest eigenvalues of ``B`` and their eigenvectors
+    (Torgerson 1952; Borg & Groenen, *Modern Multidimensional Scaling*, 2005, ch. 12). When
+    ``D`` holds Euclidean distances of points in ``R^dim`` the embedding reproduces them
+    exactly, up to a rigid motion. Negative eigenvalues (non-Euclidean ``D``) give zero
+    columns. Bronstein et al. (IJCV 2010, Figs. 4-5) show shape distances this way.
+
+    The result is centred, its axes are the principal axes in decreasing order of variance,
+    and each axis's sign makes its largest-magnitude coordinate positive (the first such one
+    on ties), so equal inputs give equal maps.
+
+    Parameters
+    ----------
+    distances : array_like, shape (n, n)
+        Symmetric, finite distances.
+    dim : int, default 2
+        Embedding dimension, ``1 <= dim <= n``.
+    seed : int, default 0
+        Seeds the starting vector of the iterative eigensolver used above 1000 shapes
+        (below, a dense eigendecomposition is used and ``seed`` has no effect).
+
+    Returns
+    -------
+    ndarray of float64, shape (n, dim)
+
+    Raises
+    ------
+    ValueError
+        If ``distances`` is not square, finite and symmetric, or ``dim`` is out of range.
+    """
+    d = _check_distances(distances)
+    n = d.shape[0]
+    if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or not 1 <= dim <= n:
+        raise ValueError(f"dim must be an integer in [1, n = {n}], got {dim!r}")
+    d2 = d * d
+    b = -0.5 * (d2 - d2.mean(axis=0)[None, :] - d2.mean(axis=1)[:, None] + d2.mean())
+    b = 0.5 * (b + b.T)
+    if n <= _DENSE_MAX or dim >= n - 1:
+        w, v = np.linalg.eigh(b)
+        w, v = w[::-1][:dim], v[:, ::-1][:, :dim]
+    else:
+        from scipy.sparse.linalg import eigsh
+
+        v0 = np.random.default_rng(seed).standard_normal(n)
+        w, v = eigsh(b, k=dim, which="LA", v0=v0)
+        order = np.argsort(w)[::-1]
+        w, v = w[order], v[:, order]
+    if np.any(w < 0):
+        logger.debug("mds_map: %d of the top %d eigenvalues are negative; zeroed",
+                     int(np.count_nonzero(w < 0)), dim)
+    x = v * np.sqrt(np.clip(w, 0.0, None))[None, :]
+    big = np.argmax(np.abs(x), axis=0)
+    sign = np.where(x[big, np.arange(dim)] < 0, -1.0, 1.0)
+    return x * sign[None, :]
+
+
+def _figure(figsize, dpi):
+    """A matplotlib Figure on its own Agg canvas.
+
+    Pyplot is never imported, so no global backend is chosen or changed (the effect of
+    ``matplotlib.use("Agg")`` without the side effect on the caller's session).
+    """
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "plotting needs matplotlib: pip install 'gromov[plot]'") from exc
+    fig = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def plot_roc(roc_or_dict, path, *, title: str | None = None,
+             figsize: tuple[float, float] = (5.0, 4.0), dpi: int = 100) -> Path:
+    """Draw ROC curves (FRR against FAR) with their EER points to a PNG file.
+
+    Parameters
+    ----------
+    roc_or_dict : ROC or mapping of str to ROC
+        One curve, or several named ones (e.g. ``{"geodesic": ..., "diffusion": ...}``,
+        as in Bronstein et al., IJCV 2010, Figs. 6-7); the legend gives each name and EER.
+    path : str or Path
+        Output PNG file; its parent folder must exist.
+    title : str, optional
+    figsize : (float, float), default (5, 4)
+        Size in inches; the image is ``figsize * dpi`` pixels.
+    dpi : int, default 100
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If the mapping is empty.
+    TypeError
+        If a curve is not a :class:`ROC`.
+    """
+    curves = dict(roc_or_dict) if isinstance(roc_or_dict, Mapping) else {"": roc_or_dict}
+    if not curves:
+        raise ValueError("roc_or_dict must hold at least one ROC, got an empty mapping")
+    for name, c in curves.items():
+        if not isinstance(c, ROC):
+            raise TypeError(f"ROC curve {name!r} must be a ROC, got {type(c).__name__}")
+    fig = _figure(figsize, dpi)
+    ax = fig.add_subplot()
+    ax.plot([0, 1], [0, 1], color="0.7", lw=0.8, ls="--")
+    for name, c in curves.items():
+        label = f"{name} (EER {c.eer:.1%})" if name else f"EER {c.eer:.1%}"
+        (line,) = ax.plot(c.far, c.frr, lw=1.5, label=label)
+        ax.plot([c.eer], [c.eer], "o", color=line.get_color())
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("false acceptance rate")
+    ax.set_ylabel("false rejection rate")
+    ax.set_aspect("equal")
+    ax.legend(loc="upper right")
+    if title:
+        ax.set_title(title)
+    path = Path(path)
+    fig.savefig(path, format="png", dpi=dpi)
+    return path
+
+
+def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
+             title: str | None = None,
+             figsize: tuple[float, float] = (5.0, 5.0), dpi: int = 100) -> Path:
+    """Draw a two-dimensional MDS map of shapes, one colour per class, to a PNG file.
+
+    As in Bronstein et al. (IJCV 2010, Figs. 4-5): each shape is a point, classes are
+    coloured (``tab10``, or ``tab20`` above ten classes, in order of first appearance) and
+    ``marked`` shapes (e.g. those with topological noise) are drawn as crosses instead of
+    discs.
+
+    Parameters
+    ----------
+    coords : array_like, shape (n, 2)
+        E.g. ``mds_map(D, 2)``.
+    labels : array_like, shape (n,)
+        Class of each shape.
+    path : str or Path
+        Output PNG file; its parent folder must exist.
+    marked : array_like of bool, shape (n,), optional
+        Shapes drawn as crosses.
+    marked_label : str, default "marked"
+        Legend entry of the crosses, e.g. ``"topological noise"``.
+    title : str, optional
+    figsize : (float, float), default (5, 5)
+        Size in inches; the image is ``figsize * dpi`` pixels.
+    dpi : int, default 100
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If ``coords`` is not finite of shape (n, 2), or ``labels`` or ``marked`` is not of
+        length n (``marked`` boolean).
+    """
+    x = np.asarray(coords, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 2:
+        raise ValueError(f"coords must have shape (n, 2), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("coords must be finite, got NaN or infinite entries")
+    n = x.shape[0]
+    lab = _check_labels(labels, n)
+    if marked is None:
+        mk = np.zeros(n, dtype=bool)
+    else:
+        mk = np.asarray(marked)
+        if mk.shape != (n,) or mk.dtype != bool:
+            raise ValueError(f"marked must be a boolean array of shape ({n},), "
+                             f"got shape {mk.shape} and dtype {mk.dtype}")
+    _, first = np.unique(lab, return_index=True)
+    classes = lab[np.sort(first)]
+    fig = _figure(figsize, dpi)
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10" if len(classes) <= 10 else "tab20"]
+    ax = fig.add_subplot()
+    for c, cls in enumerate(classes):
+        colour = cmap(c % cmap.N)
+        this = lab == cls
+        ax.scatter(x[this & ~mk, 0], x[this & ~mk, 1], s=30, color=colour, marker="o",
+                   label=str(cls))
+        if np.any(this & mk):
+            ax.scatter(x[this & mk, 0], x[this & mk, 1], s=40, color=colour, marker="x")
+    if np.any(mk):
+        ax.scatter([], [], s=40, color="0.3", marker="x", label=marked_label)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    path = Path(path)
+    fig.savefig(path, format="png", dpi=dpi)
+    return path

@@ -1,0 +1,280 @@
+"""ROC, equal error rate and MDS maps on hand-made distance matrices with known answers."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from gromov.experiments import recognition
+from gromov.experiments.recognition import equal_error_rate, mds_map, plot_mds, plot_roc, roc
+
+
+def _matrix(n, entries):
+    d = np.zeros((n, n))
+    for (i, j), v in entries.items():
+        d[i, j] = d[j, i] = v
+    return d
+
+
+# Five shapes, classes [0, 0, 0, 1, 1]. Positive pairs have distances 1, 2, 5, 7; negative
+# pairs 3, 4, 5, 8, 9, 10 -- the positive (1, 2) ties the negative (1, 3) at 5.
+HAND = _matrix(5, {(0, 1): 1, (0, 2): 2, (1, 2): 5, (3, 4): 7,
+                   (0, 3): 3, (0, 4): 4, (1, 3): 5, (1, 4): 8, (2, 3): 9, (2, 4): 10})
+HAND_LABELS = np.array([0, 0, 0, 1, 1])
+
+
+def _png_size(path):
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def _separated(seed=0):
+    rng = np.random.default_rng(seed)
+    labels = np.repeat([0, 1, 2], 4)
+    same = labels[:, None] == labels[None, :]
+    d = np.where(same, rng.uniform(0.0, 1.0, (12, 12)), rng.uniform(2.0, 3.0, (12, 12)))
+    d = np.triu(d, 1)
+    return d + d.T, labels
+
+
+# ---------------------------------------------------------------- roc / equal_error_rate
+
+
+def test_hand_computed_curve_and_eer():
+    r = roc(HAND, HAND_LABELS)
+    assert (r.n_positive, r.n_negative) == (4, 6)
+    np.testing.assert_array_equal(r.thresholds, [-np.inf, 1, 2, 3, 4, 5, 7, 8, 9, 10, np.inf])
+    np.testing.assert_array_equal(r.far, np.array([0, 0, 0, 1, 2, 3, 3, 4, 5, 6, 6]) / 6)
+    np.testing.assert_array_equal(r.frr, np.array([4, 3, 2, 2, 2, 1, 0, 0, 0, 0, 0]) / 4)
+    # FAR - FRR: -1/6 at t = 4 (1/3, 1/2), +1/4 at t = 5 (1/2, 1/4): lambda = (1/6) / (5/12)
+    # = 2/5 and EER = 1/3 + 2/5 * 1/6 = 1/2 - 2/5 * 1/4 = 2/5.
+    assert r.eer == pytest.approx(0.4, abs=1e-15)
+    assert r.eer_threshold == 5.0
+    assert equal_error_rate(HAND, HAND_LABELS) == r.eer
+    # Without the tie the crossing is a vertical step and the EER is min_t max(FAR, FRR).
+    untied = HAND.copy()
+    untied[1, 3] = untied[3, 1] = 6
+    ru = roc(untied, HAND_LABELS)
+    assert ru.eer == pytest.approx(1 / 3, abs=1e-15)
+    assert ru.eer == pytest.approx(np.min(np.maximum(ru.far, ru.frr)), abs=1e-15)
+    assert ru.eer_threshold == 5.0
+
+
+def test_curve_is_read_only():
+    r = roc(HAND, HAND_LABELS)
+    with pytest.raises(ValueError, match="read-only"):
+        r.far[0] = 0.5
+
+
+def test_mask_keeps_only_selected_pairs():
+    # Only pairs involving shape 4: negatives 4, 8, 10 and the positive 7.
+    mask = np.zeros((5, 5), dtype=bool)
+    mask[4, :] = mask[:, 4] = True
+    r = roc(HAND, HAND_LABELS, mask=mask)
+    assert (r.n_positive, r.n_negative) == (1, 3)
+    np.testing.assert_array_equal(r.thresholds, [-np.inf, 4, 7, 8, 10, np.inf])
+    np.testing.assert_array_equal(r.far, np.array([0, 1, 1, 2, 3, 3]) / 3)
+    np.testing.assert_array_equal(r.frr, [1, 1, 0, 0, 0, 0])
+    assert r.eer == pytest.approx(1 / 3, abs=1e-15)
+    assert r.eer_threshold == 7.0
+
+
+def test_ordered_pairs_with_symmetric_mask_give_the_same_curve():
+    a, b = roc(HAND, HAND_LABELS), roc(HAND, HAND_LABELS, pairs="all")
+    np.testing.assert_array_equal(a.far, b.far)
+    np.testing.assert_array_equal(a.frr, b.frr)
+    assert (b.n_positive, b.n_negative) == (8, 12)
+    assert a.eer == b.eer
+
+
+def test_separated_classes_have_zero_eer_and_monotone_rates():
+    d, labels = _separated()
+    r = roc(d, labels)
+    assert r.eer == 0.0
+    assert r.eer_threshold == d[labels[:, None] == labels[None, :]].max()
+    assert np.all(np.diff(r.far) >= 0) and np.all(np.diff(r.frr) <= 0)
+    assert np.all(np.diff(r.thresholds) > 0)
+    assert (r.far[0], r.frr[0], r.far[-1], r.frr[-1]) == (0.0, 1.0, 1.0, 0.0)
+
+
+def test_reversed_classes_have_eer_one():
+    d, labels = _separated()
+    off = ~np.eye(12, dtype=bool)
+    r = roc(np.where(off, 10.0 - d, 0.0), labels)
+    assert r.eer == 1.0
+
+
+def test_constant_distances_give_one_half():
+    labels = np.array([0, 0, 1, 1, 2, 2])
+    r = roc(np.full((6, 6), 3.0) - 3.0 * np.eye(6), labels)
+    np.testing.assert_array_equal(r.thresholds, [-np.inf, 3.0, np.inf])
+    assert r.eer == 0.5
+    assert r.eer_threshold == 3.0
+
+
+def test_random_distances_give_about_one_half():
+    rng = np.random.default_rng(1)
+    d = np.triu(rng.uniform(size=(80, 80)), 1)
+    labels = rng.integers(0, 4, 80)
+    assert abs(equal_error_rate(d + d.T, labels) - 0.5) < 0.05
+
+
+def test_eer_is_invariant_under_increasing_transforms():
+    d, labels = _separated(seed=3)
+    rng = np.random.default_rng(3)
+    noisy = d + np.triu(rng.uniform(0, 2.5, d.shape), 1)
+    noisy = np.triu(noisy, 1) + np.triu(noisy, 1).T
+    e = equal_error_rate(noisy, labels)
+    assert 0 < e < 0.5
+    assert equal_error_rate(np.exp(noisy) * 7 + 1, labels) == pytest.approx(e, abs=1e-15)
+
+
+def test_roc_errors():
+    with pytest.raises(ValueError, match=r"square \(n, n\).*\(3, 4\)"):
+        roc(np.zeros((3, 4)), [0, 0, 1])
+    with pytest.raises(ValueError, match="finite, got 2 NaN"):
+        d = HAND.copy()
+        d[0, 1] = d[1, 0] = np.nan
+        roc(d, HAND_LABELS)
+    with pytest.raises(ValueError, match="symmetric, got max"):
+        d = HAND.copy()
+        d[0, 1] += 1e-3
+        roc(d, HAND_LABELS)
+    with pytest.raises(ValueError, match=r"labels.*length n = 5, got shape \(4,\)"):
+        roc(HAND, [0, 0, 1, 1])
+    with pytest.raises(ValueError, match="pairs must be 'upper' or 'all', got 'lower'"):
+        roc(HAND, HAND_LABELS, pairs="lower")
+    with pytest.raises(ValueError, match=r"mask must be a boolean.*shape \(4, 4\)"):
+        roc(HAND, HAND_LABELS, mask=np.ones((4, 4), dtype=bool))
+    with pytest.raises(ValueError, match="dtype int"):
+        roc(HAND, HAND_LABELS, mask=np.ones((5, 5), dtype=int))
+    with pytest.raises(ValueError, match="got 0 positive and 10 negative"):
+        roc(HAND, [0, 1, 2, 3, 4])
+    with pytest.raises(ValueError, match="got 10 positive and 0 negative"):
+        equal_error_rate(HAND, [7] * 5)
+
+
+def test_tiny_asymmetry_is_tolerated():
+    d = HAND.copy()
+    d[0, 1] += 1e-12
+    assert roc(d, HAND_LABELS).n_positive == 4
+
+
+# ---------------------------------------------------------------- mds_map
+
+
+def _pairwise(x):
+    return np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
+
+
+def test_mds_recovers_a_planar_configuration():
+    x = np.random.default_rng(0).normal(size=(15, 2)) * [3.0, 1.0]
+    d = _pairwise(x)
+    y = mds_map(d, 2)
+    assert y.shape == (15, 2)
+    np.testing.assert_allclose(_pairwise(y), d, atol=1e-9)
+    np.testing.assert_allclose(y.mean(axis=0), 0, atol=1e-12)
+    cov = y.T @ y
+    assert cov[0, 0] > cov[1, 1] and abs(cov[0, 1]) < 1e-9  # principal axes, in order
+    big = np.argmax(np.abs(y), axis=0)
+    assert np.all(y[big, [0, 1]] > 0)  # sign convention
+    np.testing.assert_array_equal(mds_map(d, 2), y)
+
+
+def test_mds_of_a_rigid_motion_is_the_same_map():
+    x = np.random.default_rng(2).normal(size=(10, 3))
+    c, s = np.cos(0.7), np.sin(0.7)
+    moved = x @ np.array([[c, -s, 0], [s, c, 0], [0, 0, -1]]) + [5.0, -2.0, 1.0]
+    np.testing.assert_allclose(mds_map(_pairwise(moved), 3), mds_map(_pairwise(x), 3),
+                               atol=1e-9)
+
+
+def test_mds_iterative_path_matches_dense(monkeypatch):
+    x = np.random.default_rng(4).normal(size=(40, 2)) * [2.0, 1.0]
+    d = _pairwise(x)
+    dense = mds_map(d, 2)
+    monkeypatch.setattr(recognition, "_DENSE_MAX", 10)
+    np.testing.assert_allclose(mds_map(d, 2, seed=5), dense, atol=1e-9)
+
+
+def test_mds_errors():
+    with pytest.raises(ValueError, match=r"dim must be an integer in \[1, n = 5\], got 6"):
+        mds_map(HAND, 6)
+    with pytest.raises(ValueError, match="got 0"):
+        mds_map(HAND, 0)
+    with pytest.raises(ValueError, match=r"got 2\.0"):
+        mds_map(HAND, 2.0)
+    with pytest.raises(ValueError, match="square"):
+        mds_map(np.zeros(4))
+    with pytest.raises(ValueError, match="symmetric"):
+        mds_map(np.triu(HAND))
+
+
+# ---------------------------------------------------------------- plots
+
+
+def _colours(path):
+    from matplotlib.image import imread
+
+    img = imread(path)[..., :3]
+    return np.unique((img.reshape(-1, 3) * 255).round().astype(int), axis=0)
+
+
+def _has_colour(colours, rgb, tol=3):
+    target = (np.asarray(rgb[:3]) * 255).round()
+    return bool(np.any(np.all(np.abs(colours - target) <= tol, axis=1)))
+
+
+def test_plot_roc_writes_a_png_of_the_requested_size(tmp_path):
+    pytest.importorskip("matplotlib")
+    from matplotlib import colormaps
+
+    d, labels = _separated()
+    curves = {"separated": roc(d, labels), "hand": roc(HAND, HAND_LABELS)}
+    out = plot_roc(curves, tmp_path / "roc.png", figsize=(6, 4), dpi=50, title="ROC")
+    assert out == tmp_path / "roc.png"
+    assert _png_size(out) == (300, 200)
+    colours = _colours(out)
+    # Default property cycle: the first two curves are tab:blue and tab:orange.
+    assert _has_colour(colours, colormaps["tab10"](0))
+    assert _has_colour(colours, colormaps["tab10"](1))
+    single = plot_roc(roc(HAND, HAND_LABELS), str(tmp_path / "one.png"))
+    assert _png_size(single) == (500, 400)
+
+
+def test_plot_mds_colours_classes(tmp_path):
+    pytest.importorskip("matplotlib")
+    from matplotlib import colormaps
+
+    d, labels = _separated()
+    coords = mds_map(d, 2)
+    marked = np.arange(12) % 4 == 0
+    out = plot_mds(coords, labels, tmp_path / "mds.png", marked=marked, title="MDS",
+                   figsize=(4, 3), dpi=80)
+    assert _png_size(out) == (320, 240)
+    colours = _colours(out)
+    for c in range(3):
+        assert _has_colour(colours, colormaps["tab10"](c))
+    assert not _has_colour(colours, colormaps["tab10"](3))  # only three classes drawn
+
+
+def test_plot_errors(tmp_path):
+    pytest.importorskip("matplotlib")
+    with pytest.raises(ValueError, match="at least one ROC, got an empty mapping"):
+        plot_roc({}, tmp_path / "x.png")
+    with pytest.raises(TypeError, match="'a' must be a ROC, got float"):
+        plot_roc({"a": 0.3}, tmp_path / "x.png")
+    with pytest.raises(ValueError, match=r"coords must have shape \(n, 2\), got \(5, 3\)"):
+        plot_mds(np.zeros((5, 3)), HAND_LABELS, tmp_path / "x.png")
+    with pytest.raises(ValueError, match="coords must be finite"):
+        plot_mds(np.full((5, 2), np.nan), HAND_LABELS, tmp_path / "x.png")
+    with pytest.raises(ValueError, match=r"labels.*length n = 5"):
+        plot_mds(np.zeros((5, 2)), [0, 1], tmp_path / "x.png")
+    with pytest.raises(ValueError, match=r"marked must be a boolean array of shape \(5,\)"):
+        plot_mds(np.zeros((5, 2)), HAND_LABELS, tmp_path / "x.png", marked=[1, 0, 0, 0, 0])
+    assert not (tmp_path / "x.png").exists()
+
