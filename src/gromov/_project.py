@@ -55,8 +55,7 @@ def closest_point_barycentric(p, a, b, c):
     return 1.0 - v - w, v, w
 
 
-@njit(cache=True, parallel=True)
-def _project(points, V, F, vf_indptr, vf_ids, candidates):
+def _project_impl(points, V, F, vf_indptr, vf_ids, candidates):
     n = points.shape[0]
     face = np.empty(n, np.int64)
     bary = np.empty((n, 3))
@@ -84,6 +83,12 @@ def _project(points, V, F, vf_indptr, vf_ids, candidates):
     return face, bary, dist
 
 
+# threaded for many points; serial for a few (cheaper, and safe in forked worker processes,
+# where numba's thread pool must not be started again)
+_project = njit(cache=True, parallel=True)(_project_impl)
+_project_serial = njit(cache=True)(_project_impl)
+
+
 def project_points(points: np.ndarray, mesh, *, k: int = 4, tree=None):
     """Project points onto ``mesh``: nearest point among faces around the ``k`` nearest vertices.
 
@@ -101,5 +106,6 @@ def project_points(points: np.ndarray, mesh, *, k: int = 4, tree=None):
     _, cand = tree.query(points, k=k)
     cand = np.asarray(cand, dtype=np.int64).reshape(len(points), k)
     indptr, ids = mesh.vertex_faces
-    return _project(np.ascontiguousarray(points, dtype=np.float64), mesh.vertices, mesh.faces,
-                    indptr, ids, cand)
+    kernel = _project if len(points) >= 4096 else _project_serial
+    return kernel(np.ascontiguousarray(points, dtype=np.float64), mesh.vertices, mesh.faces,
+                  indptr, ids, cand)
