@@ -30,6 +30,7 @@ def main(argv=None):
     p.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--samples", type=int, default=100)
+    p.add_argument("--json", default=None, help="write labels, matrices and EERs to this file")
     args = p.parse_args(argv)
     tosca = TOSCA(Path(args.data) / "tosca")
     entries = experiment1(tosca)
@@ -67,6 +68,8 @@ def main(argv=None):
         welded.append(e.perturbation is not None)
     print(f"{len(meshes)} shapes ({sum(welded)} welded) prepared in {time.perf_counter() - t:.1f} s")
     labels = np.array(labels)
+    out = {"entries": [e.label for e in entries], "labels": labels.tolist(), "welded": welded,
+           "samples": args.samples, "date": time.strftime("%Y-%m-%d")}
     for metric in ("diffusion", "geodesic"):
         r = gh_matrix(meshes, metric, n_samples=args.samples, resolution=None, jobs=args.jobs, progress=True)
         eer = equal_error_rate(r.relative, labels)
@@ -75,6 +78,17 @@ def main(argv=None):
         eer_w = equal_error_rate(r.relative, labels, mask=mask)
         print(f"{metric}: EER {eer:.3f} over all pairs, {eer_w:.3f} over pairs with a welded shape "
               f"(metrics {r.seconds_prepare:.0f} s, pairs {r.seconds_match:.0f} s)")
+        # nearest neighbour (leave one out): which classes are confused
+        d = r.relative + np.diag(np.full(len(labels), np.inf))
+        nn = labels[np.argmin(d, axis=1)]
+        print(f"  nearest-neighbour class accuracy {np.mean(nn == labels):.3f}; confusions: "
+              + ", ".join(f"{a}->{b}" for a, b in zip(labels, nn) if a != b))
+        out[metric] = {"eer": eer, "eer_welded_pairs": eer_w, "relative": r.relative.tolist(),
+                       "nn_accuracy": float(np.mean(nn == labels))}
+    if args.json:
+        import json
+
+        Path(args.json).write_text(json.dumps(out))
 
 
 if __name__ == "__main__":
