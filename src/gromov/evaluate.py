@@ -14,7 +14,7 @@ import numpy as np
 
 from .gh import MatchResult, ShapeMetric
 
-__all__ = ["CorrespondenceError", "correspondence_error"]
+__all__ = ["CorrespondenceError", "correspondence_error", "image_errors"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +46,34 @@ class CorrespondenceError:
         return self.mean if self.mirrored_mean is None else min(self.mean, self.mirrored_mean)
 
 
+def image_errors(samples, images, target: ShapeMetric, truth=None, *, name: str = "") -> np.ndarray:
+    """Distance in ``target``'s metric from each image to its ground-truth image, / diameter.
+
+    ``samples`` are input ids of the source shape, ``images`` input ids of ``target``;
+    ``truth[i]`` is the target input vertex matching source input vertex ``i`` (default: the
+    identity). Distances are taken between the nearest working vertices.
+    """
+    prefix = f"{name}: " if name else ""
+    src = np.asarray(samples, dtype=np.int64)
+    img = np.asarray(images, dtype=np.int64)
+    if src.ndim != 1 or img.shape != src.shape:
+        raise ValueError(f"{prefix}samples and images must be 1-D of equal length, "
+                         f"got shapes {src.shape} and {img.shape}")
+    if truth is None:
+        gt = src
+    else:
+        truth = np.asarray(truth, dtype=np.int64)
+        if src.size and (src.min() < 0 or src.max() >= len(truth)):
+            raise ValueError(f"{prefix}ground truth has {len(truth)} entries, "
+                             f"but a sample has input id {int(src.max())}")
+        gt = truth[src]
+
+    def near(ids):
+        return target.working.from_source(target.input.from_input_ids(ids))
+
+    return target.distances[near(img), near(gt)] / target.diameter
+
+
 def correspondence_error(result: MatchResult, y: ShapeMetric, truth=None,
                          symmetry=None) -> CorrespondenceError:
     """Error of ``result``'s X -> Y images against a ground-truth map.
@@ -67,15 +95,11 @@ def correspondence_error(result: MatchResult, y: ShapeMetric, truth=None,
     -------
     CorrespondenceError
     """
-    src = np.asarray(result.x_samples)
-    gt = src if truth is None else np.asarray(truth, dtype=np.int64)[src]
-    diam = y.diameter
-    near = lambda ids: y.working.from_source(y.input.from_input_ids(ids))  # noqa: E731
-    img = near(result.x_to_y_vertex)
-    d = y.distances
-    e = d[img, near(gt)] / diam
+    e = image_errors(result.x_samples, result.x_to_y_vertex, y, truth)
     if symmetry is None:
         return CorrespondenceError(e, float(e.mean()), None, None, "direct")
-    em = d[img, near(np.asarray(symmetry, dtype=np.int64)[gt])] / diam
+    symmetry = np.asarray(symmetry, dtype=np.int64)
+    mirrored_truth = symmetry if truth is None else symmetry[np.asarray(truth, dtype=np.int64)]
+    em = image_errors(result.x_samples, result.x_to_y_vertex, y, mirrored_truth)
     branch = "direct" if e.mean() <= em.mean() else "mirrored"
     return CorrespondenceError(e, float(e.mean()), em, float(em.mean()), branch)

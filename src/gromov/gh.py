@@ -257,7 +257,7 @@ def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndar
     return np.asarray(chosen, dtype=np.int64)
 
 
-def gw_coupling(dx: np.ndarray, dy: np.ndarray, *, seed: int = 0, max_iter: int = 1000) -> np.ndarray:
+def gw_coupling(dx: np.ndarray, dy: np.ndarray, *, max_iter: int = 1000) -> np.ndarray:
     """Gromov-Wasserstein coupling (M, K) of two distance matrices with uniform weights (POT)."""
     try:
         import ot
@@ -334,7 +334,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     gm = SymmetricGMDS(X_s, Y_s, P, Q, p=p, max_iter=max_iter, tol=tol, radius=radius)
 
     if solver == "gw" or init == "gw":
-        T = gw_coupling(dx_pp, dy_qq, seed=seed)
+        T = gw_coupling(dx_pp, dy_qq)
         img_p0, img_q0 = Q[np.argmax(T, axis=1)], P[np.argmax(T, axis=0)]
     else:
         cand_y = _candidates(sx.descriptors[P[0]], sy, n_starts)

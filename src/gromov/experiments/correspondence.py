@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..evaluate import image_errors
 from ..gh import MatchResult, ShapeMetric
 
 __all__ = ["CorrespondenceQuality", "correspondence_distortion", "error_curve"]
@@ -52,27 +53,6 @@ def _truth(truth, name: str) -> np.ndarray | None:
     return t.astype(np.int64)
 
 
-def _direction_errors(samples, images, truth, target: ShapeMetric, name: str) -> np.ndarray:
-    """Errors of the images of ``samples`` (input ids of the source) on ``target``."""
-    src = np.asarray(samples, dtype=np.int64)
-    img = np.asarray(images, dtype=np.int64)
-    if src.ndim != 1 or img.shape != src.shape:
-        raise ValueError(f"{name}: samples and images must be 1-D of equal length, "
-                         f"got shapes {src.shape} and {img.shape}")
-    if truth is None:
-        gt = src
-    else:
-        if src.size and (src.min() < 0 or src.max() >= len(truth)):
-            raise ValueError(f"{name}: ground truth has {len(truth)} entries, "
-                             f"but a sample has input id {int(src.max())}")
-        gt = truth[src]
-
-    def near(ids):
-        return target.working.from_source(target.input.from_input_ids(ids))
-
-    return target.distances[near(img), near(gt)] / target.diameter
-
-
 def correspondence_distortion(result: MatchResult, x: ShapeMetric, y: ShapeMetric,
                               truth_xy=None, truth_yx=None) -> CorrespondenceQuality:
     r"""Distance :math:`d(C, C_0)` between a computed and the ground-truth correspondence.
@@ -106,8 +86,8 @@ def correspondence_distortion(result: MatchResult, x: ShapeMetric, y: ShapeMetri
     if not isinstance(x, ShapeMetric) or not isinstance(y, ShapeMetric):
         raise TypeError(f"x and y must be ShapeMetric, got {type(x).__name__} and {type(y).__name__}")
     txy, tyx = _truth(truth_xy, "truth_xy"), _truth(truth_yx, "truth_yx")
-    exy = _direction_errors(result.x_samples, result.x_to_y_vertex, txy, y, "X -> Y")
-    eyx = _direction_errors(result.y_samples, result.y_to_x_vertex, tyx, x, "Y -> X")
+    exy = image_errors(result.x_samples, result.x_to_y_vertex, y, txy, name="X -> Y")
+    eyx = image_errors(result.y_samples, result.y_to_x_vertex, x, tyx, name="Y -> X")
     if exy.size == 0 or eyx.size == 0:
         raise ValueError(f"result has no samples in one direction ({exy.size} X -> Y, {eyx.size} Y -> X)")
     mxy, myx = float(exy.mean()), float(eyx.mean())

@@ -124,7 +124,7 @@ class MetricSolver(ABC):
 
         ``exact=False`` (default) uses the double sweep: farthest vertex from vertex 0,
         then the farthest from it, iterated until it stops growing (a lower bound that
-        is tight on most shapes; exact when the pairwise matrix is already cached).
+        is tight on most shapes); ``exact=True`` takes the maximum of :meth:`pairwise`.
         """
         if exact:
             d = self.pairwise()
