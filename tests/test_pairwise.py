@@ -44,3 +44,13 @@ def test_errors():
         gh_matrix([grid()], "geodesic")
     with pytest.raises(ValueError, match="jobs must be"):
         gh_matrix([grid(), grid()], "geodesic", jobs=0)
+
+
+def test_keep_returns_the_full_match_of_the_asked_pairs():
+    shapes, _ = _sheets()
+    r = gh_matrix(shapes[:3], "geodesic", n_samples=20, resolution=None, jobs=2, keep=[(0, 2)])
+    assert set(r.results) == {(0, 2)}
+    full = r.results[0, 2]
+    assert full.distance == r.distance[0, 2] and len(full.x_to_y_vertex) == 20
+    with pytest.raises(ValueError, match="keep needs pairs"):
+        gh_matrix(shapes[:3], "geodesic", n_samples=20, resolution=None, keep=[(2, 0)])

@@ -249,10 +249,10 @@ def _reference_and_deformations(tosca: TOSCA, cls: str, n: int) -> list[int]:
     """Pose 0 and the first ``n`` other poses of ``cls`` in sorted order."""
     poses = tosca.poses(cls)
     if 0 not in poses:
-        raise DatasetError(f"TOSCA class {cls!r} has no reference pose 0; poses: {poses}")
+        raise DatasetError(f"class {cls!r} has no reference pose 0; poses: {poses}")
     others = [p for p in poses if p != 0]
     if len(others) < n:
-        raise DatasetError(f"TOSCA class {cls!r} needs {n} poses besides 0, has {others}")
+        raise DatasetError(f"class {cls!r} needs {n} poses besides 0, has {others}")
     return others[:n]
 
 
@@ -263,7 +263,7 @@ EXPERIMENT2_CLASSES = {"cat": 2, "dog": 2, "david": 2, "victoria": 2}
 """Experiment 2 classes and deformations per class."""
 
 
-def experiment1(tosca: TOSCA) -> list[Entry]:
+def experiment1(tosca: TOSCA, classes: dict[str, int] | None = None) -> list[Entry]:
     """The point-wise topology changes subset (Bronstein et al. 2010, §5, experiment 1).
 
     Per class of :data:`EXPERIMENT1_CLASSES` (cat 2, dog 4, david 6, victoria 6
@@ -275,6 +275,10 @@ def experiment1(tosca: TOSCA) -> list[Entry]:
     Parameters
     ----------
     tosca : TOSCA
+        Or any collection with the same ``poses(cls)`` method (e.g. the built-in
+        :class:`gromov.experiments.synthetic.Synthetic`).
+    classes : dict of str to int, optional
+        Classes and deformations per class; default :data:`EXPERIMENT1_CLASSES`.
 
     Returns
     -------
@@ -287,7 +291,7 @@ def experiment1(tosca: TOSCA) -> list[Entry]:
         A class lacks pose 0 or has too few poses. ``KeyError`` if a class is missing.
     """
     out = []
-    for cls, n in EXPERIMENT1_CLASSES.items():
+    for cls, n in (EXPERIMENT1_CLASSES if classes is None else classes).items():
         deformations = _reference_and_deformations(tosca, cls, n)
         out.append(_entry("experiment1", cls, 0, None))
         for pose in deformations:
@@ -296,7 +300,7 @@ def experiment1(tosca: TOSCA) -> list[Entry]:
     return out
 
 
-def experiment2(tosca: TOSCA) -> list[Entry]:
+def experiment2(tosca: TOSCA, classes: dict[str, int] | None = None) -> list[Entry]:
     """The holes subset (Bronstein et al. 2010, §5, experiment 2).
 
     Per class of :data:`EXPERIMENT2_CLASSES` (cat, dog, david, victoria): the clean
@@ -308,6 +312,9 @@ def experiment2(tosca: TOSCA) -> list[Entry]:
     Parameters
     ----------
     tosca : TOSCA
+        Or any collection with the same ``poses(cls)`` method.
+    classes : dict of str to int, optional
+        Classes and deformations per class; default :data:`EXPERIMENT2_CLASSES`.
 
     Returns
     -------
@@ -320,7 +327,7 @@ def experiment2(tosca: TOSCA) -> list[Entry]:
         A class lacks pose 0 or has too few poses. ``KeyError`` if a class is missing.
     """
     out = []
-    for cls, n in EXPERIMENT2_CLASSES.items():
+    for cls, n in (EXPERIMENT2_CLASSES if classes is None else classes).items():
         deformations = _reference_and_deformations(tosca, cls, n)
         out.append(_entry("experiment2", cls, 0, None))
         for pose in deformations:

@@ -12,18 +12,19 @@ import logging
 import multiprocessing as mp
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..gh import ShapeMetric, match
 
-__all__ = ["PairwiseGH", "gh_matrix"]
+__all__ = ["PairwiseGH", "gh_matrix", "match_pairs", "prepare"]
 
 logger = logging.getLogger(__name__)
 
 _SHAPES: list[ShapeMetric] = []   # set before forking workers
 _OPTIONS: dict = {}
+_KEEP: frozenset = frozenset()
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,17 +37,86 @@ class PairwiseGH:
     n_samples: int
     seconds_prepare: float
     seconds_match: float
+    results: dict = field(default_factory=dict)
+    """``{(i, j): MatchResult}`` for the pairs asked for with ``keep`` (``i < j``)."""
 
 
 def _pair(ij):
     i, j = ij
     r = match(_SHAPES[i], _SHAPES[j], _SHAPES[i].metric, **_OPTIONS)
-    return i, j, r.distance, r.relative_distance
+    return r.distance, r.relative_distance, (r if (i, j) in _KEEP else None)
+
+
+def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolution: int | None = 3000,
+            metric_options: dict | None = None, progress: bool = False) -> list[ShapeMetric]:
+    """Each shape's working mesh, dense metric, diameter, descriptors and samples, once.
+
+    ``shapes`` are meshes, paths or :class:`ShapeMetric` objects (whose metric must be
+    ``metric``); returns the prepared ``ShapeMetric`` objects in the same order.
+    """
+    from tqdm import tqdm
+
+    out = []
+    for s in tqdm(list(shapes), desc=f"{metric} metrics", disable=not progress, leave=False):
+        if not isinstance(s, ShapeMetric):
+            s = ShapeMetric(s, metric, resolution=resolution, metric_options=metric_options)
+        elif s.metric != metric:
+            raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
+        s.distances, s.diameter, s.descriptors, s.samples(n_samples, seed)  # per shape, once
+        out.append(s)
+    return out
+
+
+def _run(prepared, pairs, keep, jobs, progress, desc, options):
+    """``(distance, relative, MatchResult or None)`` per pair, in the order of ``pairs``."""
+    global _SHAPES, _OPTIONS, _KEEP
+    from tqdm import tqdm
+
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    out = []
+    _SHAPES, _OPTIONS, _KEEP = prepared, options, frozenset(keep)
+    try:
+        with tqdm(total=len(pairs), desc=desc, disable=not progress, leave=False) as bar:
+            if jobs > 1 and len(pairs) > 1 and "fork" in mp.get_all_start_methods():
+                with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork")) as pool:
+                    for r in pool.map(_pair, pairs, chunksize=max(1, len(pairs) // (8 * jobs))):
+                        out.append(r)
+                        bar.update(1)
+            else:
+                for ij in pairs:
+                    out.append(_pair(ij))
+                    bar.update(1)
+    finally:
+        _SHAPES, _OPTIONS, _KEEP = [], {}, frozenset()
+    return out
+
+
+def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 100, seed: int = 0,
+                resolution: int | None = 3000, metric_options: dict | None = None, jobs: int = 1,
+                progress: bool = False, **match_options) -> list:
+    """:func:`gromov.match` on the given pairs ``(i, j)`` of ``shapes`` (X = ``shapes[i]``).
+
+    Each shape is prepared once (as in :func:`gh_matrix`); pairs run in ``jobs`` forked
+    worker processes. Returns the :class:`gromov.MatchResult` of each pair, in order.
+    """
+    pairs = [(int(i), int(j)) for i, j in pairs]
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
+                       metric_options=metric_options, progress=progress)
+    n = len(prepared)
+    bad = [ij for ij in pairs if not (0 <= ij[0] < n and 0 <= ij[1] < n)]
+    if bad:
+        raise ValueError(f"pairs must index the {n} shapes, got {bad[:3]}")
+    runs = _run(prepared, pairs, set(pairs), jobs, progress, f"{metric} matches",
+                dict(n_samples=n_samples, seed=seed, **match_options))
+    return [full for _, _, full in runs]
 
 
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
-              **match_options) -> PairwiseGH:
+              keep=(), **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -60,6 +130,9 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         not available).
     progress : bool, default False
         Show a progress bar (tqdm) on stderr.
+    keep : iterable of (int, int), optional
+        Pairs ``(i, j)`` with ``i < j`` whose full :class:`gromov.MatchResult` (the
+        correspondence, not only the distance) is returned in ``results``.
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``...).
 
@@ -70,45 +143,29 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         for i < j, mirrored to (j, i) (GH is symmetric; the two-sided GMDS treats both
         directions).
     """
-    global _SHAPES, _OPTIONS
-    from tqdm import tqdm
-
-    if jobs < 1:
-        raise ValueError(f"jobs must be >= 1, got {jobs}")
     shapes = list(shapes)
     if len(shapes) < 2:
         raise ValueError(f"need at least two shapes, got {len(shapes)}")
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
     t0 = time.perf_counter()
-    prepared = []
-    for s in tqdm(shapes, desc=f"{metric} metrics", disable=not progress, leave=False):
-        if not isinstance(s, ShapeMetric):
-            s = ShapeMetric(s, metric, resolution=resolution, metric_options=metric_options)
-        elif s.metric != metric:
-            raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
-        s.distances, s.diameter, s.descriptors, s.samples(n_samples, seed)  # per shape, once
-        prepared.append(s)
+    prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
+                       metric_options=metric_options, progress=progress)
     t1 = time.perf_counter()
     n = len(prepared)
+    keep = frozenset((int(i), int(j)) for i, j in keep)
+    bad = [ij for ij in keep if not 0 <= ij[0] < ij[1] < n]
+    if bad:
+        raise ValueError(f"keep needs pairs (i, j) with 0 <= i < j < {n}, got {sorted(bad)[:3]}")
     pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
     dist = np.zeros((n, n))
     rel = np.zeros((n, n))
-    _SHAPES, _OPTIONS = prepared, dict(n_samples=n_samples, seed=seed, **match_options)
-    try:
-        bar = tqdm(total=len(pairs), desc=f"{metric} GH pairs", disable=not progress, leave=False)
-        if jobs > 1 and "fork" in mp.get_all_start_methods():
-            with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork")) as pool:
-                results = pool.map(_pair, pairs, chunksize=max(1, len(pairs) // (8 * jobs)))
-                for i, j, d, r in results:
-                    dist[i, j] = dist[j, i] = d
-                    rel[i, j] = rel[j, i] = r
-                    bar.update(1)
-        else:
-            for ij in pairs:
-                i, j, d, r = _pair(ij)
-                dist[i, j] = dist[j, i] = d
-                rel[i, j] = rel[j, i] = r
-                bar.update(1)
-        bar.close()
-    finally:
-        _SHAPES, _OPTIONS = [], {}
-    return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1)
+    kept = {}
+    for (i, j), (d, r, full) in zip(pairs, _run(prepared, pairs, keep, jobs, progress,
+                                                  f"{metric} GH pairs",
+                                                  dict(n_samples=n_samples, seed=seed, **match_options))):
+        dist[i, j] = dist[j, i] = d
+        rel[i, j] = rel[j, i] = r
+        if full is not None:
+            kept[i, j] = full
+    return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept)
