@@ -325,7 +325,7 @@ def _fix4(x) -> str:
 def _seconds(x) -> str:
     v = _num(x)
     if v is None:
-        return "n/a"
+        return "n/a" if x is None or isinstance(x, numbers.Real) else _value_text(x)
     if v >= 120:
         return f"{v:.0f} s ({int(v // 60)} min {v % 60:02.0f} s)"
     return f"{v:.1f} s" if v >= 1 else f"{v:.3f} s"
@@ -414,11 +414,17 @@ def _caption(key: str) -> str:
     head, rest = tokens[0], tokens[1:]
     recognition = head in ("roc", "mds")
     words = [kinds.get(head, head)]
+    free = head not in kinds  # was the last word a free one? then continue it
     for t in rest:
         if recognition and t in _EXPERIMENTS:
             words.append(_EXPERIMENTS[t])
-        else:
+        elif t in _CONDITIONS or t in _METRIC_ORDER:
             words.append(_CONDITIONS.get(t, t))
+        elif free:
+            words[-1] += " " + t
+        else:
+            words.append(t)
+        free = not (t in _CONDITIONS or t in _METRIC_ORDER)
     return ", ".join(words)
 
 
@@ -481,19 +487,20 @@ def _eer_of(results: Mapping, exp: str, metric: str):
 
 
 def _recognition_rows(results: Mapping) -> tuple[list, list[str]]:
-    exps = set()
+    exps: dict = {}
     for src in (results.get("eer"), results.get("recognition")):
         if isinstance(src, Mapping):
-            exps.update(k for k, v in src.items() if isinstance(v, Mapping))
+            exps.update((k, None) for k, v in src.items() if isinstance(v, Mapping))
     rows, worse = [], []
-    for exp in _ordered(sorted(exps), tuple(_EXPERIMENTS)):
-        metrics = set()
+    for exp in _ordered(exps, tuple(_EXPERIMENTS)):
+        metrics: dict = {}
         for src in (_get(results, "eer", exp), _get(results, "recognition", exp)):
             if isinstance(src, Mapping):
-                metrics.update(k for k, v in src.items()
-                               if k in _METRIC_ORDER or isinstance(v, (Mapping, numbers.Real)))
-        metrics -= {"entries", "classes", "perturbed"}
-        for metric in _ordered(sorted(metrics), _METRIC_ORDER):
+                metrics.update((k, None) for k, v in src.items()
+                               if k not in ("entries", "classes", "perturbed")
+                               and (isinstance(v, Mapping) or _num(v) is not None
+                                    or k in _METRIC_ORDER))
+        for metric in _ordered(metrics, _METRIC_ORDER):
             ours = _eer_of(results, exp, metric)
             paper = _get(PAPER, "eer", exp, metric)
             diff, verdict = _compare(ours, paper, unit=0.001, kind="pct")
@@ -512,7 +519,7 @@ def _recognition_sets(results: Mapping) -> str:
     if not isinstance(rec, Mapping):
         return ""
     items = []
-    for exp in _ordered(sorted(k for k in rec if isinstance(rec[k], Mapping)), tuple(_EXPERIMENTS)):
+    for exp in _ordered([k for k in rec if isinstance(rec[k], Mapping)], tuple(_EXPERIMENTS)):
         r = rec[exp]
         entries, classes, perturbed = r.get("entries"), r.get("classes"), r.get("perturbed")
         bits = []
@@ -549,7 +556,7 @@ def _correspondence(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[
     corr = results.get("correspondence")
     parts = ["<h2>Correspondence</h2>"]
     worse: list[str] = []
-    metrics = ([m for m in _ordered(sorted(corr), _METRIC_ORDER) if isinstance(corr[m], Mapping)]
+    metrics = ([m for m in _ordered(corr, _METRIC_ORDER) if isinstance(corr[m], Mapping)]
                if isinstance(corr, Mapping) else [])
     if not metrics:
         parts.append(_not_run("Correspondence"))
@@ -613,14 +620,15 @@ def _topkids(results: Mapping, figures: Mapping, out_dir: Path) -> str:
     if not isinstance(tk, Mapping):
         parts.append(_not_run("TOPKIDS (SHREC'16 topological noise)"))
     else:
-        metrics = [m for m in _ordered(sorted(tk), _METRIC_ORDER) if isinstance(tk[m], Mapping)]
+        metrics = [m for m in _ordered(tk, _METRIC_ORDER) if isinstance(tk[m], Mapping)]
         bits = []
         if tk.get("n_shapes") is not None:
             bits.append(f"{tk['n_shapes']} shapes")
         if tk.get("reference") is not None:
             bits.append(f"each matched with the reference {tk['reference']}")
         parts.append(f"<p>SHREC'16 TOPKIDS (not in the paper){': ' if bits else ''}"
-                     f"{_esc(', '.join(bits))}. Lower is better.</p>")
+                     f"{_esc(', '.join(bits))}. Lower d(C, C<sub>0</sub>) and distortion are "
+                     "better.</p>")
         if metrics:
             rows = [[label] + [fmt(_get(tk, m, key)) for m in metrics]
                     for key, label, fmt in _TOPKIDS_ROWS
