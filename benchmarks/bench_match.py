@@ -30,29 +30,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 import gromov
 from gromov.evaluate import correspondence_error
+from gromov.experiments.reproduce import reflection_map
 from gromov.gh import ShapeMetric, match
 
 HERE = Path(__file__).resolve().parent
 CLASSES = ("cat", "dog", "david", "victoria")
-
-
-def mirror_map(mesh) -> np.ndarray:
-    """Vertex -> mirror vertex, through the bounding box's best symmetry plane (axis-aligned)."""
-    v = mesh.vertices
-    center = 0.5 * (v.min(0) + v.max(0))
-    tree = cKDTree(v)
-    best = None
-    for axis in range(3):
-        r = v.copy()
-        r[:, axis] = 2 * center[axis] - r[:, axis]
-        d, idx = tree.query(r)
-        if best is None or d.mean() < best[0]:
-            best = (d.mean(), idx, axis)
-    return best[1]
 
 
 def main(argv=None):
@@ -74,7 +59,7 @@ def main(argv=None):
           f"{'rel. GH':>9}{'seconds':>9}")
     for cls in CLASSES:
         x_in, y_in = gromov.load(tosca / f"{cls}0.off.gz"), gromov.load(tosca / f"{cls}1.off.gz")
-        sym = mirror_map(x_in)
+        sym = reflection_map(x_in)  # input ids; x_in numbers them 0..n-1
         shapes = {}
         for metric in ("geodesic", "diffusion"):
             shapes[metric] = (ShapeMetric(x_in, metric, resolution=args.resolution),

@@ -1,4 +1,4 @@
-"""Command-line interface: ``gromov info``, ``gromov distances``, ``gromov demo``.
+"""Command-line interface: ``gromov info|distances|match|perturb|reproduce|demo``.
 
 Thin: parses arguments, calls the library, prints. User errors (unreadable file, bad
 option values, a metric that cannot be computed) print one line ``gromov: error: ...``
@@ -280,6 +280,34 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_reproduce(args) -> int:
+    import os
+
+    from .experiments.datasets import data_root
+    from .experiments.reproduce import RESULT_KEYS, reproduce
+
+    data = None
+    if args.data is not None:
+        data = data_root(args.data or None)   # "--data" alone: $GROMOV_DATA or ../shared/data
+    command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
+    r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
+                  command=command.strip())
+    paper = {"eer.weld.geodesic": 0.135, "eer.weld.diffusion": 0.04, "eer.holes.geodesic": 0.068,
+             "eer.holes.diffusion": 0.0, "correspondence.geodesic.clean": 0.0514,
+             "correspondence.geodesic.weld": 0.1586, "correspondence.diffusion.clean": 0.0268,
+             "correspondence.diffusion.weld": 0.0291}
+    print(f"{r['dataset']}{' (quick)' if r['quick'] else ''}: {r['seconds_total']:.0f} s; "
+          f"report {os.path.join(args.out, 'index.html')}")
+    print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
+    for key in RESULT_KEYS:
+        v = r[key]
+        print(f"  {key:<34}{'-' if v is None else format(v, '.4f'):>9}{paper[key]:>15.4f}")
+    if r["topkids"] is not None:
+        for m in ("geodesic", "diffusion"):
+            print(f"  {'topkids.' + m + '.correspondence':<34}{r['topkids'][m]['correspondence']:>9.4f}")
+    return 0
+
+
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gromov", description=(
@@ -331,6 +359,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="weld: search radius for close pairs; holes: geodesic radius (defaults in the docs)")
     q.add_argument("--seed", type=int, default=0)
     q.set_defaults(func=cmd_perturb)
+
+    q = sub.add_parser("reproduce", help="the paper's experiments, results.json and an HTML report")
+    q.add_argument("--data", nargs="?", const="", default=None, metavar="DIR",
+                   help="directory with tosca/ (and topkids/); '--data' alone: $GROMOV_DATA. "
+                        "Without it: the built-in synthetic set")
+    q.add_argument("--out", default="gromov-reproduce", help="output directory (default gromov-reproduce)")
+    q.add_argument("--quick", action="store_true", help="a smaller run (fewer shapes and samples)")
+    q.add_argument("--jobs", type=_positive_int, default=None,
+                   help="worker processes (default: the CPUs available)")
+    q.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    q.set_defaults(func=cmd_reproduce)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")
     q.add_argument("--samples", type=_positive_int, default=12)

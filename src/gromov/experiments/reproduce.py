@@ -1,0 +1,614 @@
+r"""``gromov reproduce``: the experiments of Bronstein et al. (IJCV 2010, §5) end to end.
+
+Bronstein, Bronstein, Mahmoudi, Kimmel & Sapiro, "A Gromov-Hausdorff framework with
+diffusion geometry for topologically-robust non-rigid shape matching", IJCV 89 (2010).
+
+What runs (:func:`reproduce`):
+
+1. **Shapes.** The subsets of Experiment 1 (each deformation clean and welded at
+   :data:`~gromov.experiments.datasets.WELD_COUNT` places) and Experiment 2 (each
+   deformation with 10 and 20 holes), from TOSCA or from the built-in synthetic set.
+   Every pose of a class is brought to the working resolution *identically*
+   (:meth:`gromov.WorkingMesh.transfer` of the reference pose), so vertex ``i`` is the same
+   point in every pose, and the topological noise is put on that working mesh; every mesh
+   keeps the file's vertex numbering in ``input_ids``, so the ground truth is the identity.
+2. **Recognition.** For each experiment and metric (geodesic, diffusion), the pairwise GH
+   matrix (each shape's metric once, pairs in parallel), the ROC and equal error rate over
+   all pairs (positives: same class), nearest-neighbour accuracy, MDS maps.
+3. **Correspondence.** From the same runs, the matches of each class's reference pose with
+   its deformations, clean, welded and with holes: the paper's :math:`d(C, C_0)`, measured
+   in the *geodesic* metric of the *clean* shapes for both matching metrics (so a weld's
+   shortcut cannot make an error look small, and the two metrics are judged by the same
+   ruler), divided by the clean shape's geodesic diameter. Bodies are left/right symmetric:
+   both the direct and the mirrored ground truth are measured (the mirror of the reference
+   pose through its best axis-aligned plane) and ``best`` counts the mirrored map as
+   correct; both are reported.
+4. **TOPKIDS** (when the data is there): kid01..kid25 matched to kid00 with the given
+   ground truth (SHREC'16 protocol: errors of the images of kidXX's samples on kid00,
+   geodesic on kid00, symmetric map of kid00 for the mirrored reading), and how the GH
+   estimate to kid00 grows with the number of handles (Spearman correlation).
+5. ``results.json``, PNG figures and a self-contained ``index.html`` report
+   (:mod:`gromov.experiments.report`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import platform
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import perturb as _perturb
+from ..errors import GromovError
+from ..gh import ShapeMetric
+from ..mesh import Mesh
+from ..metrics import metric_solver
+from ..resolution import WorkingMesh, simplify
+from . import datasets
+from .pairwise import gh_matrix, match_pairs
+from .recognition import mds_map, plot_mds, plot_roc, roc
+
+__all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS"]
+
+logger = logging.getLogger(__name__)
+
+METRICS = ("geodesic", "diffusion")
+"""The two metrics compared by every experiment."""
+
+RESULT_KEYS = (
+    "eer.weld.geodesic", "eer.weld.diffusion", "eer.holes.geodesic", "eer.holes.diffusion",
+    "correspondence.geodesic.clean", "correspondence.geodesic.weld",
+    "correspondence.diffusion.clean", "correspondence.diffusion.weld",
+)
+"""Keys of ``results.json`` other tools read; each is both a nested path and a flat key."""
+
+
+# ----------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class Settings:
+    """What one run of :func:`reproduce` computes.
+
+    Attributes
+    ----------
+    dataset : {"tosca", "synthetic"}
+    quick : bool
+    resolution : int or None
+        Working mesh size (None: the meshes as they are).
+    n_samples : int
+        Farthest point samples per shape for every match.
+    experiment1, experiment2 : dict of str to int
+        Classes and number of deformations per class.
+    topkids : int
+        TOPKIDS shapes matched to kid00 (0: none).
+    seed : int
+        Sampling seed of every match (perturbation seeds are fixed per entry).
+    metric_options : dict
+        Per metric, options for :func:`gromov.metric_solver`.
+    """
+
+    dataset: str
+    quick: bool
+    resolution: int | None
+    n_samples: int
+    experiment1: dict
+    experiment2: dict
+    topkids: int
+    seed: int = 0
+    metric_options: dict = field(default_factory=lambda: {m: {} for m in METRICS})
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Settings:
+    """The settings of a run: the paper's subsets on TOSCA, a smaller set when ``quick``.
+
+    ======================  ==========  =======  ========================  ============  =======
+    run                     resolution  samples  Exp. 1 deformations       Exp. 2        TOPKIDS
+    ======================  ==========  =======  ========================  ============  =======
+    TOSCA                   3000        100      cat 2, dog 4, male 6,     2 per class   25
+                                                 female 6 (paper)
+    TOSCA ``--quick``       3000        100      2 per class               1 per class   5
+    synthetic               as built    60       3 per class               2 per class   --
+    synthetic ``--quick``   800         30       1 per class               1 per class   --
+    ======================  ==========  =======  ========================  ============  =======
+    """
+    if dataset == "tosca":
+        if quick:
+            return Settings("tosca", True, 3000, 100, {c: 2 for c in datasets.EXPERIMENT1_CLASSES},
+                            {c: 1 for c in datasets.EXPERIMENT2_CLASSES}, 5, seed)
+        return Settings("tosca", False, 3000, 100, dict(datasets.EXPERIMENT1_CLASSES),
+                        dict(datasets.EXPERIMENT2_CLASSES), 25, seed)
+    if dataset == "synthetic":
+        from .synthetic import Synthetic
+
+        classes = Synthetic().classes()
+        if quick:
+            return Settings("synthetic", True, 800, 30, {c: 1 for c in classes}, {c: 1 for c in classes},
+                            0, seed)
+        return Settings("synthetic", False, None, 60, {c: 3 for c in classes}, {c: 2 for c in classes},
+                        0, seed)
+    raise ValueError(f"dataset must be 'tosca' or 'synthetic', got {dataset!r}")
+
+
+# ----------------------------------------------------------------------------- helpers
+def reflection_map(mesh: Mesh) -> np.ndarray:
+    """Mirror of every vertex through the best axis-aligned plane of the bounding box.
+
+    TOSCA reference poses (and the synthetic ones) are left/right symmetric about a plane
+    through the bounding box's centre, perpendicular to a coordinate axis: reflect the
+    vertices through each of the three planes and keep the one whose reflection lands
+    closest to the surface (mean distance to the nearest vertex).
+
+    Returns
+    -------
+    ndarray of int64, shape (n_vertices,)
+        Input id (``mesh.input_ids``) of the mirror of the vertex with each input id;
+        ``-1`` for ids that are not vertices of ``mesh``.
+    """
+    from scipy.spatial import cKDTree
+
+    v = mesh.vertices
+    centre = 0.5 * (v.min(0) + v.max(0))
+    tree = cKDTree(v)
+    best = None
+    for axis in range(3):
+        r = v.copy()
+        r[:, axis] = 2 * centre[axis] - r[:, axis]
+        d, idx = tree.query(r)
+        if best is None or d.mean() < best[0]:
+            best = (d.mean(), idx)
+    ids = mesh.input_ids
+    out = np.full(int(ids.max()) + 1, -1, dtype=np.int64)
+    out[ids] = ids[best[1]]
+    return out
+
+
+def _weld(work: Mesh, count: int, seed: int):
+    """Weld ``count`` places, relaxing the search when a pose has too few close parts.
+
+    The default search radius is 5 mean edge lengths and a weld needs the geodesic distance
+    to be 4 times the Euclidean one; a pose whose parts do not come that close gets a
+    larger radius (x1.5 up to four times), then a ratio of 2, then fewer welds. What was
+    used is returned so the report can say it.
+    """
+    edge = work.mean_edge_length
+    for ratio in (4.0, 2.0):
+        for k in range(count, 0, -1):
+            radius = 5 * edge
+            for _ in range(5):
+                try:
+                    p = _perturb.weld(work, k, radius=radius, seed=seed, min_geodesic_ratio=ratio)
+                except ValueError:
+                    radius *= 1.5
+                    continue
+                return p, {"welds": k, "radius_edges": round(radius / edge, 2), "min_geodesic_ratio": ratio}
+    raise GromovError(f"no place to weld on a mesh of {work.n_vertices} vertices")
+
+
+@dataclass
+class _Shape:
+    label: str
+    cls: str
+    pose: int
+    kind: str            # "clean", "weld", "holes"
+    mesh: Mesh           # working mesh with the noise; input_ids = the file's numbering
+    info: dict
+
+
+def _collection(dataset: str, data: Path | None):
+    if dataset == "tosca":
+        return datasets.TOSCA(Path(data) / "tosca")
+    from .synthetic import Synthetic
+
+    return Synthetic()
+
+
+class _Shapes:
+    """Working meshes per (class, pose), made once; perturbed shapes per entry."""
+
+    def __init__(self, collection, resolution):
+        self.collection = collection
+        self.resolution = resolution
+        self.working: dict[tuple[str, int], WorkingMesh] = {}
+        self.mirror: dict[str, np.ndarray] = {}
+        self.shapes: dict[str, _Shape] = {}
+        self.diameters: dict[tuple[str, int], float] = {}
+
+    def work(self, cls: str, pose: int) -> WorkingMesh:
+        key = (cls, pose)
+        if key not in self.working:
+            if (cls, 0) not in self.working:
+                ref = self.collection.load(cls, 0)
+                n = ref.n_vertices if self.resolution is None else min(self.resolution, ref.n_vertices)
+                self.working[cls, 0] = simplify(ref, n)
+                self.mirror[cls] = reflection_map(ref)
+            if pose != 0:
+                self.working[key] = self.working[cls, 0].transfer(self.collection.load(cls, pose))
+        return self.working[key]
+
+    def entry(self, e: datasets.Entry) -> _Shape:
+        if e.label in self.shapes:
+            return self.shapes[e.label]
+        clean = self.work(e.cls, e.pose).mesh
+        if e.perturbation is None:
+            s = _Shape(e.label, e.cls, e.pose, "clean", clean, {"euler": clean.euler_characteristic})
+        else:
+            kind, count = e.perturbation
+            if kind == "weld":
+                p, info = _weld(clean, count, e.seed)
+            else:
+                p = _perturb.holes(clean, count, seed=e.seed)
+                info = {"holes": count}
+            info.update(seed=e.seed, euler_before=p.euler_before, euler_after=p.euler_after,
+                        boundary_loops_after=p.boundary_loops_after)
+            s = _Shape(e.label, e.cls, e.pose, kind, p.mesh, info)
+        self.shapes[e.label] = s
+        return s
+
+    def diameter(self, cls: str, pose: int) -> float:
+        """Geodesic diameter of the clean working mesh (largest distance from all vertices)."""
+        key = (cls, pose)
+        if key not in self.diameters:
+            self.diameters[key] = float(np.max(metric_solver(self.work(cls, pose).mesh, "geodesic").pairwise()))
+        return self.diameters[key]
+
+
+def _geodesic_errors(w: WorkingMesh, images, truth) -> np.ndarray:
+    """Geodesic distance on the clean working mesh ``w`` between image and truth (file ids)."""
+    def near(ids):
+        return w.from_source(w.source.from_input_ids(ids))
+
+    a, b = near(images), near(truth)
+    solver = metric_solver(w.mesh, "geodesic")
+    uniq, inv = np.unique(b, return_inverse=True)
+    rows = solver.from_sources(uniq)
+    return rows[inv, a]
+
+
+def _pair_quality(result, shapes: _Shapes, x: _Shape, y: _Shape) -> dict:
+    """d(C, C0) of one match, direct and mirrored, measured on the clean shapes."""
+    wx, wy = shapes.work(x.cls, x.pose), shapes.work(y.cls, y.pose)
+    dx, dy = shapes.diameter(x.cls, x.pose), shapes.diameter(y.cls, y.pose)
+    sym = shapes.mirror[x.cls]
+    out = {}
+    for name, tx, ty in (("direct", result.x_samples, result.y_samples),
+                         ("mirrored", sym[result.x_samples], sym[result.y_samples])):
+        tx = np.where(tx < 0, result.x_samples, tx)
+        ty = np.where(ty < 0, result.y_samples, ty)
+        exy = _geodesic_errors(wy, result.x_to_y_vertex, tx) / dy
+        eyx = _geodesic_errors(wx, result.y_to_x_vertex, ty) / dx
+        out[name] = 0.5 * (float(exy.mean()) + float(eyx.mean()))
+    out["best"] = min(out["direct"], out["mirrored"])
+    out["branch"] = "direct" if out["direct"] <= out["mirrored"] else "mirrored"
+    return out
+
+
+def _versions() -> dict:
+    from importlib import metadata
+
+    out = {"python": platform.python_version(), "platform": platform.platform()}
+    for dist in ("gromov", "numpy", "scipy", "numba", "potpourri3d", "robust-laplacian",
+                 "fast-simplification", "POT", "matplotlib"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+def _say(msg: str, quiet: bool) -> None:
+    if not quiet:
+        print(msg, file=sys.stderr, flush=True)
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+# ----------------------------------------------------------------------------- recognition
+def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, out: Path,
+                 quiet: bool, timings: dict, matches: dict) -> dict:
+    """Pairwise GH matrices of one experiment for both metrics, ROC/EER, MDS figures."""
+    items = [shapes.entry(e) for e in entries]
+    labels = np.array([s.cls for s in items])
+    perturbed = np.array([s.kind != "clean" for s in items])
+    # the correspondence pairs: each class's reference (first of its class) with the others
+    first = {}
+    for i, s in enumerate(items):
+        first.setdefault(s.cls, i)
+    keep = [(first[s.cls], i) for i, s in enumerate(items) if i != first[s.cls] and s.pose != 0]
+    rec = {"entries": [s.label for s in items], "classes": list(dict.fromkeys(labels.tolist())),
+           "labels": labels.tolist(), "perturbed": perturbed.tolist(),
+           "shapes": {s.label: s.info for s in items}}
+    curves = {}
+    for metric in METRICS:
+        t = time.perf_counter()
+        r = gh_matrix([s.mesh for s in items], metric, n_samples=st.n_samples, resolution=None,
+                      metric_options=st.metric_options[metric], seed=st.seed, jobs=jobs,
+                      progress=not quiet, keep=keep)
+        timings[f"{name}.{metric}.metrics_s"] = round(r.seconds_prepare, 2)
+        timings[f"{name}.{metric}.pairs_s"] = round(r.seconds_match, 2)
+        curve = roc(r.relative, labels)
+        curves[metric] = curve
+        mask = perturbed[:, None] | perturbed[None, :]
+        d = r.relative + np.diag(np.full(len(items), np.inf))
+        nn = labels[np.argmin(d, axis=1)]
+        rec[metric] = {
+            "eer": float(curve.eer),
+            "eer_perturbed_pairs": float(roc(r.relative, labels, mask=mask).eer) if perturbed.any() else None,
+            "nn_accuracy": float(np.mean(nn == labels)),
+            "confusions": [f"{items[i].label}->{nn[i]}" for i in range(len(items)) if nn[i] != labels[i]],
+            "relative": r.relative.round(6).tolist(),
+            "seconds": round(time.perf_counter() - t, 2),
+        }
+        for (i, j), res in r.results.items():
+            matches[metric, items[i].label, items[j].label] = res
+        coords = mds_map(r.relative, 2, seed=st.seed)
+        f = f"mds_{name}_{metric}.png"
+        plot_mds(coords, labels, out / f, marked=perturbed, marked_label=name,
+                 title=f"MDS, {metric}, {'Experiment 1 (welds)' if name == 'weld' else 'Experiment 2 (holes)'}")
+        rec.setdefault("figures", {})[f"mds_{name}_{metric}"] = f
+        _say(f"  {name}/{metric}: EER {curve.eer:.3f}, nearest-neighbour accuracy "
+             f"{rec[metric]['nn_accuracy']:.3f} ({time.perf_counter() - t:.0f} s)", quiet)
+    f = f"roc_{name}.png"
+    plot_roc(curves, out / f, title="ROC, " + ("Experiment 1 (welds)" if name == "weld" else "Experiment 2 (holes)"))
+    rec["figures"][f"roc_{name}"] = f
+    return rec
+
+
+def _correspondence(matches: dict, shapes: _Shapes, quiet: bool) -> dict:
+    """d(C, C0) per metric, condition and class from the kept matches."""
+    out = {}
+    for metric in METRICS:
+        per = {}   # (cls, condition) -> list of (best, direct)
+        pairs = []
+        for (m, xl, yl), res in matches.items():
+            if m != metric:
+                continue
+            x, y = shapes.shapes[xl], shapes.shapes[yl]
+            q = _pair_quality(res, shapes, x, y)
+            per.setdefault((y.cls, y.kind), []).append(q)
+            pairs.append({"x": xl, "y": yl, **{k: (round(v, 6) if isinstance(v, float) else v)
+                                                for k, v in q.items()},
+                          "relative_distance": round(res.relative_distance, 6)})
+        by_class, by_class_direct = {}, {}
+        for (cls, kind), qs in per.items():
+            by_class.setdefault(cls, {})[kind] = float(np.mean([q["best"] for q in qs]))
+            by_class_direct.setdefault(cls, {})[kind] = float(np.mean([q["direct"] for q in qs]))
+        entry = {"by_class": by_class, "by_class_direct": by_class_direct, "pairs": pairs}
+        for kind in ("clean", "weld", "holes"):
+            qs = [q for (c, k), v in per.items() if k == kind for q in v]
+            if qs:
+                entry[kind] = float(np.mean([q["best"] for q in qs]))
+                entry[f"{kind}_direct"] = float(np.mean([q["direct"] for q in qs]))
+                entry[f"{kind}_mirrored_fraction"] = float(np.mean([q["branch"] == "mirrored" for q in qs]))
+                entry[f"{kind}_pairs"] = len(qs)
+        out[metric] = entry
+        _say(f"  correspondence {metric}: " + ", ".join(
+            f"{k} {entry[k]:.4f}" for k in ("clean", "weld", "holes") if k in entry), quiet)
+    return out
+
+
+def _correspondence_figures(matches: dict, shapes: _Shapes, out: Path) -> dict:
+    """Fig. 6-like pictures: X's sample cells carried to Y, for one welded pair per metric."""
+    from .report import plot_correspondence, voronoi_labels
+
+    figures = {}
+    for metric in METRICS:
+        keys = [k for k in matches if k[0] == metric and shapes.shapes[k[2]].kind == "weld"]
+        keys = keys or [k for k in matches if k[0] == metric]
+        if not keys:
+            continue
+        _, xl, yl = keys[0]
+        x, y = shapes.shapes[xl], shapes.shapes[yl]
+        res = matches[keys[0]]
+        wx, wy = shapes.work(x.cls, x.pose), shapes.work(y.cls, y.pose)
+        px = wx.from_source(wx.source.from_input_ids(res.x_samples))
+        x_labels = voronoi_labels(metric_solver(wx.mesh, "geodesic").from_sources(px))
+        # cells on Y: around each sample's image, by geodesic distance on the clean Y, drawn
+        # on the perturbed Y (whose vertices are clean vertices: map by file id)
+        img = wy.from_source(wy.source.from_input_ids(res.x_to_y_vertex))
+        cells = voronoi_labels(metric_solver(wy.mesh, "geodesic").from_sources(img))
+        y_labels = cells[wy.mesh.from_input_ids(y.mesh.input_ids)]
+        key = f"correspondence_{metric}_{y.kind}"
+        f = f"{key}.png"
+        plot_correspondence(x.mesh, y.mesh, x_labels, y_labels, out / f, titles=(xl, yl),
+                            title=f"{metric}: cells of {xl}'s samples carried to {yl}")
+        figures[key] = f
+    return figures
+
+
+# ----------------------------------------------------------------------------- TOPKIDS
+def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timings: dict) -> dict:
+    from scipy.stats import spearmanr
+
+    from .correspondence import error_curve
+    from .recognition import _figure
+
+    kids = datasets.TopKids(Path(data) / "topkids")
+    ref = kids.reference
+    names = [n for n in kids.names if n != ref][: st.topkids]
+    t = time.perf_counter()
+    meshes = [kids.load(n) for n in [ref] + names]
+    works = [simplify(m, min(st.resolution or m.n_vertices, m.n_vertices)) for m in meshes]
+    handles = [(2 - m.euler_characteristic) / 2 for m in meshes]
+    timings["topkids.load_s"] = round(time.perf_counter() - t, 2)
+    w0 = works[0]
+    geo0 = metric_solver(w0.mesh, "geodesic")
+    diam0 = float(np.max(geo0.pairwise()))
+    sym0 = kids.symmetry(ref)
+    area0 = float(meshes[0].area)
+    res = {"n_shapes": len(names), "reference": ref, "shapes": names,
+           "handles": dict(zip(names, handles[1:])), "euler_reference": meshes[0].euler_characteristic}
+    curves = {}
+    for metric in METRICS:
+        t = time.perf_counter()
+        shapes = [ShapeMetric(m, metric, working=w, metric_options=st.metric_options[metric])
+                  for m, w in zip(meshes, works)]
+        results = match_pairs(shapes, [(i, 0) for i in range(1, len(shapes))], metric,
+                              n_samples=st.n_samples, seed=st.seed, resolution=None, jobs=jobs,
+                              progress=not quiet)
+        direct, best, mirrored, rel, abs_err = [], [], [], [], []
+        for name, r in zip(names, results):
+            gt = kids.ground_truth(name)[r.x_samples]
+            gm = sym0[gt]
+            gm = np.where(gm < 0, gt, gm)
+            e = _geodesic_errors(w0, r.x_to_y_vertex, gt)
+            em = _geodesic_errors(w0, r.x_to_y_vertex, gm)
+            direct.append(e.mean() / diam0)
+            mirrored.append(em.mean() < e.mean())
+            chosen = e if e.mean() <= em.mean() else em
+            best.append(chosen.mean() / diam0)
+            abs_err.append(chosen)
+            rel.append(r.relative_distance)
+        rho = spearmanr(handles[1:], rel).statistic if len(rel) > 2 else None
+        res[metric] = {
+            "correspondence": float(np.mean(best)), "correspondence_direct": float(np.mean(direct)),
+            "mirrored_fraction": float(np.mean(mirrored)),
+            "relative_distance_mean": float(np.mean(rel)), "relative_distance_max": float(np.max(rel)),
+            "spearman_distance_vs_handles": None if rho is None else float(rho),
+            "per_shape": {n: round(float(b), 6) for n, b in zip(names, best)},
+            "relative_distance": {n: round(float(d), 6) for n, d in zip(names, rel)},
+            "seconds": round(time.perf_counter() - t, 2),
+        }
+        thr, frac = error_curve(np.concatenate(abs_err), area0)
+        curves[metric] = (thr, frac)
+        res[metric]["error_curve"] = {"thresholds": thr.round(4).tolist(), "fraction": frac.round(4).tolist()}
+        timings[f"topkids.{metric}_s"] = res[metric]["seconds"]
+        _say(f"  topkids/{metric}: d(C,C0) {res[metric]['correspondence']:.4f} "
+             f"(direct {res[metric]['correspondence_direct']:.4f}), GH/diam mean "
+             f"{res[metric]['relative_distance_mean']:.4f}, Spearman vs handles "
+             f"{res[metric]['spearman_distance_vs_handles']}", quiet)
+    fig = _figure((5.0, 4.0), 100)
+    ax = fig.add_subplot(111)
+    for metric, (thr, frac) in curves.items():
+        ax.plot(thr, frac, label=metric)
+    ax.set_xlabel("geodesic error / sqrt(area)")
+    ax.set_ylabel("fraction of samples")
+    ax.set_title(f"TOPKIDS: kid01-{names[-1][3:]} to {ref} (symmetric map counted)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "topkids_error_curve.png")
+    res["figures"] = {"topkids_error_curve": "topkids_error_curve.png"}
+    return res
+
+
+# ----------------------------------------------------------------------------- main
+def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: int | None = None,
+              seed: int = 0, quiet: bool = False, command: str | None = None) -> dict:
+    """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
+
+    Parameters
+    ----------
+    data : str or Path, optional
+        Directory with ``tosca/`` (and optionally ``topkids/``), laid out like
+        ``../shared/data``. None: the built-in synthetic set
+        (:class:`gromov.experiments.synthetic.Synthetic`), no files needed.
+    out : str or Path, default "gromov-reproduce"
+        Output directory (created).
+    quick : bool, default False
+        A smaller run (see :func:`settings_for`).
+    jobs : int, optional
+        Worker processes for the matches; default: the CPUs this process may use.
+    seed : int, default 0
+        Sampling seed of every match.
+    quiet : bool, default False
+        No progress output on stderr.
+    command : str, optional
+        The command line, recorded in the results.
+
+    Returns
+    -------
+    dict
+        The content of ``results.json``. Keys of :data:`RESULT_KEYS` are there both nested
+        (``results["eer"]["weld"]["geodesic"]``) and flat (``results["eer.weld.geodesic"]``);
+        values are fractions. ``topkids`` is None without TOPKIDS data.
+    """
+    t_start = time.perf_counter()
+    if jobs is None:
+        jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if int(jobs) < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    jobs = int(jobs)
+    dataset = "synthetic" if data is None else "tosca"
+    if data is not None:
+        data = Path(data)
+        if not (data / "tosca").is_dir():
+            raise datasets.DatasetError(f"{data}: no tosca/ directory (expected the layout of "
+                                        f"../shared/data: tosca/cat0.off.gz, ...)")
+    st = settings_for(dataset, quick, seed=seed)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    collection = _collection(dataset, data)
+    shapes = _Shapes(collection, st.resolution)
+    timings: dict = {}
+    _say(f"gromov reproduce: {dataset}{' (quick)' if quick else ''}, {jobs} job(s), output in {out}", quiet)
+
+    t = time.perf_counter()
+    exp1 = datasets.experiment1(collection, st.experiment1)
+    exp2 = datasets.experiment2(collection, st.experiment2)
+    for e in exp1 + exp2:
+        shapes.entry(e)
+    timings["shapes_s"] = round(time.perf_counter() - t, 2)
+    _say(f"  {len(exp1)} + {len(exp2)} shapes at {st.resolution or 'full'} resolution "
+         f"({timings['shapes_s']:.0f} s)", quiet)
+
+    matches: dict = {}
+    recognition = {
+        "weld": _recognition("weld", exp1, shapes, st, jobs, out, quiet, timings, matches),
+        "holes": _recognition("holes", exp2, shapes, st, jobs, out, quiet, timings, matches),
+    }
+    t = time.perf_counter()
+    correspondence = _correspondence(matches, shapes, quiet)
+    figures = {}
+    for rec in recognition.values():
+        figures.update(rec.pop("figures"))
+    figures.update(_correspondence_figures(matches, shapes, out))
+    timings["correspondence_s"] = round(time.perf_counter() - t, 2)
+
+    topkids = None
+    if data is not None and st.topkids and (data / "topkids").is_dir():
+        topkids = _topkids(data, st, jobs, out, quiet, timings)
+        figures.update(topkids.pop("figures"))
+    timings["total_s"] = round(time.perf_counter() - t_start, 2)
+
+    results = {
+        "dataset": dataset, "data": None if data is None else str(data), "quick": quick,
+        "date": time.strftime("%Y-%m-%d"), "command": command or "gromov reproduce",
+        "seconds_total": timings["total_s"], "jobs": jobs,
+        "eer": {exp: {m: recognition[exp][m]["eer"] for m in METRICS} for exp in recognition},
+        "recognition": recognition,
+        "correspondence": correspondence,
+        "topkids": topkids,
+        "timings": timings,
+        "params": {**st.to_dict(), "weld_count": datasets.WELD_COUNT, "hole_counts": list(datasets.HOLE_COUNTS),
+                   "correspondence_error": "geodesic on the clean working meshes / clean geodesic diameter; "
+                                           "best of direct and mirrored ground truth"},
+        "seeds": {"sampling": seed, "perturbations": {s.label: s.info.get("seed") for s in shapes.shapes.values()
+                                                      if "seed" in s.info}},
+        "versions": _versions(),
+        "figures": figures,
+    }
+    for key in RESULT_KEYS:
+        a, b, c = key.split(".")
+        results[key] = results[a][b].get(c) if a == "correspondence" else results[a][b][c]
+    (out / "results.json").write_text(json.dumps(results, indent=1, default=_json_default))
+    from .report import write_report
+
+    write_report(json.loads((out / "results.json").read_text()), out)
+    _say(f"  wrote {out / 'results.json'} and {out / 'index.html'} ({timings['total_s']:.0f} s)", quiet)
+    return results
