@@ -128,7 +128,7 @@ def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Setting
     if dataset == "synthetic":
         from .synthetic import Synthetic
 
-        classes = Synthetic().classes()
+        classes = list(Synthetic().classes)
         if quick:
             return Settings("synthetic", True, 800, 30, {c: 1 for c in classes}, {c: 1 for c in classes},
                             0, seed)

@@ -1,0 +1,86 @@
+"""`gromov reproduce`: end to end on the synthetic set, the results contract, helpers."""
+
+import json
+
+import numpy as np
+import pytest
+
+from gromov import Mesh
+from gromov.cli import main
+from gromov.experiments.reproduce import RESULT_KEYS, reflection_map, settings_for
+from gromov.shapes import grid
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("reproduce")
+    code = main(["reproduce", "--quick", "--out", str(out), "--jobs", "2", "--quiet"])
+    return code, out
+
+
+def test_quick_run_writes_the_contract(quick_run, capsys):
+    code, out = quick_run
+    assert code == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["dataset"] == "synthetic" and r["quick"] is True and r["topkids"] is None
+    for key in RESULT_KEYS:
+        a, b, c = key.split(".")
+        flat, nested = r[key], r[a][b][c]
+        assert flat == nested and 0.0 <= flat <= 1.0, key   # fractions, not percent
+    for exp in ("weld", "holes"):
+        rec = r["recognition"][exp]
+        n = len(rec["entries"])
+        assert any(rec["perturbed"]) and len(rec["classes"]) >= 2
+        for m in ("geodesic", "diffusion"):
+            d = np.array(rec[m]["relative"])
+            assert d.shape == (n, n) and np.allclose(d, d.T) and np.all(np.diag(d) == 0)
+            assert np.all(d[~np.eye(n, dtype=bool)] > 0)
+    # the perturbations did what they say: welds lower the Euler characteristic, holes add loops
+    shapes = r["recognition"]["weld"]["shapes"]
+    welded = [s for label, s in shapes.items() if "+weld" in label]
+    assert welded and all(s["euler_after"] < s["euler_before"] for s in welded)
+    holed = [s for label, s in r["recognition"]["holes"]["shapes"].items() if "+holes" in label]
+    assert holed and all(s["boundary_loops_after"] >= 1 for s in holed)
+    for key in ("timings", "versions", "seeds", "params"):
+        assert r[key]
+    assert r["versions"]["gromov"] and r["params"]["n_samples"] == settings_for("synthetic", True).n_samples
+    for f in r["figures"].values():
+        assert (out / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    html = (out / "index.html").read_text()
+    assert "data:image/png;base64," in html and "13.5" in html   # the paper's geodesic EER beside ours
+
+
+def test_quick_run_correspondence_is_measured(quick_run):
+    _, out = quick_run
+    r = json.loads((out / "results.json").read_text())
+    for m in ("geodesic", "diffusion"):
+        c = r["correspondence"][m]
+        for kind in ("clean", "weld", "holes"):
+            assert c[f"{kind}_pairs"] >= 1
+            # best counts the mirrored map as correct: never worse than the direct reading
+            assert c[kind] <= c[f"{kind}_direct"] + 1e-12
+        for p in c["pairs"]:
+            assert p["best"] == min(p["direct"], p["mirrored"])
+
+
+def test_reflection_map_of_a_symmetric_sheet():
+    g = grid(9, 5)   # symmetric about the middle of its x range
+    m = reflection_map(g)
+    v = g.vertices
+    np.testing.assert_allclose(v[m, 0], v[:, 0].max() + v[:, 0].min() - v[:, 0], atol=1e-12)
+    np.testing.assert_allclose(v[m, 1:], v[:, 1:], atol=1e-12)
+    assert np.array_equal(m[m], np.arange(g.n_vertices))
+    # ids are input ids: a renumbered mesh maps its own ids
+    sub = Mesh(g.vertices, g.faces, input_ids=np.arange(g.n_vertices) + 100)
+    assert np.array_equal(reflection_map(sub)[100:], m + 100)
+
+
+def test_settings_and_user_errors(tmp_path, capsys):
+    with pytest.raises(ValueError, match="dataset must be"):
+        settings_for("shrec")
+    full = settings_for("tosca")
+    assert full.experiment1 == {"cat": 2, "dog": 4, "david": 6, "victoria": 6}
+    assert full.resolution == 3000 and full.n_samples == 100 and full.topkids == 25
+    assert main(["reproduce", "--data", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    assert "no tosca/ directory" in capsys.readouterr().err
+    assert main(["reproduce", "--data", str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
