@@ -115,7 +115,7 @@ def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Setting
     TOSCA                   3000        100      cat 2, dog 4, male 6,     2 per class   25
                                                  female 6 (paper)
     TOSCA ``--quick``       3000        100      2 per class               1 per class   5
-    synthetic               as built    60       3 per class               2 per class   --
+    synthetic               as built    50       2 per class               1 per class   --
     synthetic ``--quick``   800         30       1 per class               1 per class   --
     ======================  ==========  =======  ========================  ============  =======
     """
@@ -132,7 +132,7 @@ def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Setting
         if quick:
             return Settings("synthetic", True, 800, 30, {c: 1 for c in classes}, {c: 1 for c in classes},
                             0, seed)
-        return Settings("synthetic", False, None, 60, {c: 3 for c in classes}, {c: 2 for c in classes},
+        return Settings("synthetic", False, None, 50, {c: 2 for c in classes}, {c: 1 for c in classes},
                         0, seed)
     raise ValueError(f"dataset must be 'tosca' or 'synthetic', got {dataset!r}")
 
