@@ -284,6 +284,7 @@ def cmd_reproduce(args) -> int:
     import os
 
     from .experiments.datasets import data_root
+    from .experiments.report import PAPER
     from .experiments.reproduce import RESULT_KEYS, reproduce
 
     data = None
@@ -292,16 +293,17 @@ def cmd_reproduce(args) -> int:
     command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
                   command=command.strip())
-    paper = {"eer.weld.geodesic": 0.135, "eer.weld.diffusion": 0.04, "eer.holes.geodesic": 0.068,
-             "eer.holes.diffusion": 0.0, "correspondence.geodesic.clean": 0.0514,
-             "correspondence.geodesic.weld": 0.1586, "correspondence.diffusion.clean": 0.0268,
-             "correspondence.diffusion.weld": 0.0291}
+    def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
+        a, b, c = key.split(".")
+        return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
+            "clean" if c == "clean" else "topology"]
+
     print(f"{r['dataset']}{' (quick)' if r['quick'] else ''}: {r['seconds_total']:.0f} s; "
           f"report {os.path.join(args.out, 'index.html')}")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
-        print(f"  {key:<34}{'-' if v is None else format(v, '.4f'):>9}{paper[key]:>15.4f}")
+        print(f"  {key:<34}{'-' if v is None else format(v, '.4f'):>9}{paper(key):>15.4f}")
     if r["topkids"] is not None:
         for m in ("geodesic", "diffusion"):
             print(f"  {'topkids.' + m + '.correspondence':<34}{r['topkids'][m]['correspondence']:>9.4f}")

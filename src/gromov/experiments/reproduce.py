@@ -220,6 +220,7 @@ class _Shapes:
         self.mirror: dict[str, np.ndarray] = {}
         self.shapes: dict[str, _Shape] = {}
         self.diameters: dict[tuple[str, int], float] = {}
+        self.solvers: dict[tuple[str, int], object] = {}
 
     def work(self, cls: str, pose: int) -> WorkingMesh:
         key = (cls, pose)
@@ -252,6 +253,12 @@ class _Shapes:
         self.shapes[e.label] = s
         return s
 
+    def geodesic(self, cls: str, pose: int):
+        """Geodesic solver on the clean working mesh, one per shape (not per pair)."""
+        if (cls, pose) not in self.solvers:
+            self.solvers[cls, pose] = metric_solver(self.work(cls, pose).mesh, "geodesic")
+        return self.solvers[cls, pose]
+
     def diameter(self, cls: str, pose: int) -> float:
         """Geodesic diameter of the clean working mesh (largest of all pairwise distances).
 
@@ -259,17 +266,16 @@ class _Shapes:
         """
         key = (cls, pose)
         if key not in self.diameters:
-            self.diameters[key] = float(np.max(metric_solver(self.work(cls, pose).mesh, "geodesic").pairwise()))
+            self.diameters[key] = float(np.max(self.geodesic(cls, pose).pairwise()))
         return self.diameters[key]
 
 
-def _geodesic_errors(w: WorkingMesh, images, truth) -> np.ndarray:
-    """Geodesic distance on the clean working mesh ``w`` between image and truth (file ids)."""
+def _geodesic_errors(w: WorkingMesh, solver, images, truth) -> np.ndarray:
+    """Geodesic distance (``solver`` on ``w.mesh``) between image and truth (file ids)."""
     def near(ids):
         return w.from_source(w.source.from_input_ids(ids))
 
     a, b = near(images), near(truth)
-    solver = metric_solver(w.mesh, "geodesic")
     uniq, inv = np.unique(b, return_inverse=True)
     rows = solver.from_sources(uniq)
     return rows[inv, a]
@@ -285,8 +291,8 @@ def _pair_quality(result, shapes: _Shapes, x: _Shape, y: _Shape) -> dict:
                          ("mirrored", sym[result.x_samples], sym[result.y_samples])):
         tx = np.where(tx < 0, result.x_samples, tx)
         ty = np.where(ty < 0, result.y_samples, ty)
-        exy = _geodesic_errors(wy, result.x_to_y_vertex, tx) / dy
-        eyx = _geodesic_errors(wx, result.y_to_x_vertex, ty) / dx
+        exy = _geodesic_errors(wy, shapes.geodesic(y.cls, y.pose), result.x_to_y_vertex, tx) / dy
+        eyx = _geodesic_errors(wx, shapes.geodesic(x.cls, x.pose), result.y_to_x_vertex, ty) / dx
         out[name] = 0.5 * (float(exy.mean()) + float(eyx.mean()))
     out["best"] = min(out["direct"], out["mirrored"])
     out["branch"] = "direct" if out["direct"] <= out["mirrored"] else "mirrored"
@@ -425,11 +431,11 @@ def _correspondence_figures(matches: dict, shapes: _Shapes, out: Path) -> dict:
         res = matches[keys[0]]
         wx, wy = shapes.work(x.cls, x.pose), shapes.work(y.cls, y.pose)
         px = wx.from_source(wx.source.from_input_ids(res.x_samples))
-        x_labels = voronoi_labels(metric_solver(wx.mesh, "geodesic").from_sources(px))
+        x_labels = voronoi_labels(shapes.geodesic(x.cls, x.pose).from_sources(px))
         # cells on Y: around each sample's image, by geodesic distance on the clean Y, drawn
         # on the perturbed Y (whose vertices are clean vertices: map by file id)
         img = wy.from_source(wy.source.from_input_ids(res.x_to_y_vertex))
-        cells = voronoi_labels(metric_solver(wy.mesh, "geodesic").from_sources(img))
+        cells = voronoi_labels(shapes.geodesic(y.cls, y.pose).from_sources(img))
         y_labels = cells[wy.mesh.from_input_ids(y.mesh.input_ids)]
         key = f"correspondence_{metric}_{y.kind}"
         f = f"{key}.png"
@@ -474,8 +480,8 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
             gt = kids.ground_truth(name)[r.x_samples]
             gm = sym0[gt]
             gm = np.where(gm < 0, gt, gm)
-            e = _geodesic_errors(w0, r.x_to_y_vertex, gt)
-            em = _geodesic_errors(w0, r.x_to_y_vertex, gm)
+            e = _geodesic_errors(w0, geo0, r.x_to_y_vertex, gt)
+            em = _geodesic_errors(w0, geo0, r.x_to_y_vertex, gm)
             direct.append(e.mean() / diam0)
             mirrored.append(em.mean() < e.mean())
             chosen = e if e.mean() <= em.mean() else em
