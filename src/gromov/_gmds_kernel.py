@@ -223,61 +223,219 @@ def pair_distances(vt, vu, fixed, D2, F):
 
 
 @njit(cache=True)
-def greedy_place(dx, DY, start, m):
-    """Extend images ``start`` (c,) to the first ``m`` samples: each next sample goes to the
-    vertex of Y whose distances to the placed images best match ``dx`` (least squares)."""
-    n = DY.shape[0]
-    img = np.empty(m, np.int64)
-    c = start.shape[0]
-    img[:c] = start
-    cost = np.zeros(n)
-    for i in range(c, m):
-        cost[:] = 0.0
-        for j in range(i):
-            col = img[j]
-            t = dx[i, j]
-            for v in range(n):
-                r = DY[col, v] - t  # DY is symmetric: read rows
-                cost[v] += r * r
-        img[i] = np.argmin(cost)
-    return img
+def _sq_dist_sum(dx, DY, img):
+    """``sum_ij (dx[i, j] - DY[img_i, img_j])^2``: the one-sided distortion times ``m^2``."""
+    m = img.shape[0]
+    f = 0.0
+    for i in range(m):
+        for j in range(m):
+            r = dx[i, j] - DY[img[i], img[j]]
+            f += r * r
+    return f
 
 
 @njit(cache=True)
-def _descent_moves(dx, DY, img, C, max_sweeps):
+def _place(dx, DY, img, c, R, C, block):
+    """Greedy placement of samples ``c..m-1`` given ``img[:c]``; leaves in ``C[k]`` the cost
+    ``sum_{j<k} (dx[k, j] - DY[img_j, :])^2`` that placed sample k (for all k) and in ``R[k]``
+    the row ``DY[img_k]``.
+
+    Blocked: for the rows of a block the part over samples placed before the block is one
+    matrix product ``dx[block, :b] @ R[:b]`` (expanded square), the rest is summed directly.
+    """
+    m = dx.shape[0]
     n = DY.shape[0]
+    S = np.zeros(n)  # sum_{j < b} R[j]^2
+    for b in range(0, m, block):
+        e = min(b + block, m)
+        if b > 0:
+            G = np.dot(np.ascontiguousarray(dx[b:e, :b]), R[:b])
+        for k in range(b, e):
+            row = C[k]
+            if b > 0:
+                a = 0.0
+                for j in range(b):
+                    a += dx[k, j] * dx[k, j]
+                g = G[k - b]
+                for u in range(n):
+                    row[u] = a - 2.0 * g[u] + S[u]
+            else:
+                row[:] = 0.0
+            for j in range(b, k):
+                t = dx[k, j]
+                rj = R[j]
+                for u in range(n):
+                    d = t - rj[u]
+                    row[u] += d * d
+            if k >= c:
+                img[k] = np.argmin(row)
+            R[k] = DY[img[k]]
+        for k in range(b, e):
+            rk = R[k]
+            for u in range(n):
+                S[u] += rk[u] * rk[u]
+
+
+@njit(cache=True)
+def _complete(dx, R, C, block):
+    """Add ``sum_{j>k} (dx[k, j] - R[j])^2`` to each ``C[k]`` (blocked like :func:`_place`)."""
+    m = dx.shape[0]
+    n = R.shape[1]
+    S = np.zeros(n)  # sum_{j >= e} R[j]^2
+    for e in range(m, 0, -block):
+        b = max(e - block, 0)
+        if e < m:
+            G = np.dot(np.ascontiguousarray(dx[b:e, e:]), R[e:])
+        for k in range(b, e):
+            row = C[k]
+            if e < m:
+                a = 0.0
+                for j in range(e, m):
+                    a += dx[k, j] * dx[k, j]
+                g = G[k - b]
+                for u in range(n):
+                    row[u] += a - 2.0 * g[u] + S[u]
+            for j in range(k + 1, e):
+                t = dx[k, j]
+                rj = R[j]
+                for u in range(n):
+                    d = t - rj[u]
+                    row[u] += d * d
+        for k in range(b, e):
+            rk = R[k]
+            for u in range(n):
+                S[u] += rk[u] * rk[u]
+
+
+@njit(cache=True)
+def _flush(dx, DY, C, pend, dD, v_new, v_old, tot, r):
+    """Apply ``r`` pending moves to every row of ``C`` in one pass (see :func:`_descend`)."""
+    m, n = C.shape
+    coef = np.empty(r)
+    for k in range(m):
+        ck = C[k]
+        for u in range(n):
+            ck[u] += tot[u]
+        for s in range(r):
+            if pend[s] == k:  # row k leaves out its own image: take back that move's dS
+                coef[s] = 0.0
+                a, b = DY[v_new[s]], DY[v_old[s]]
+                for u in range(n):
+                    ck[u] -= a[u] * a[u] - b[u] * b[u]
+            else:
+                coef[s] = -2.0 * dx[k, pend[s]]
+        for s in range(r):
+            cs = coef[s]
+            if cs != 0.0:
+                ds = dD[s]
+                for u in range(n):
+                    ck[u] += cs * ds[u]
+    tot[:] = 0.0
+
+
+@njit(cache=True)
+def _descend(dx, DY, img, C, max_sweeps, cap, ratio):
+    """Gauss-Seidel over images on the cost table ``C`` (see :func:`place_and_descend`).
+
+    A move of image i from ``old`` to ``v`` changes every other row k of ``C`` by
+    ``dS - 2 dx[k, i] dD`` with ``dS = DY[v]^2 - DY[old]^2`` and ``dD = DY[v] - DY[old]``.
+    Moves are kept pending (their ``dD`` rows, small enough to stay in cache) and added to a
+    row only when it is read; they are applied to all of ``C`` in one pass once the rows
+    read since the last pass, times the moves pending, reach ``ratio`` times the rows of
+    ``C``, or ``cap`` moves are pending. This reads and writes ``C`` (too large for the
+    cache) a few times per sweep instead of once per move.
+    """
     m = img.shape[0]
+    n = DY.shape[0]
+    pend = np.empty(cap, np.int64)
+    v_new = np.empty(cap, np.int64)
+    v_old = np.empty(cap, np.int64)
+    dD = np.empty((cap, n))
+    tot = np.zeros(n)  # sum of the pending dS
+    buf = np.empty(n)
+    r = 0
+    work = 0
+    limit = ratio * m
     for _ in range(max_sweeps):
         moved = 0
         for i in range(m):
-            row = C[i]
+            if r == 0:
+                row = C[i]
+            else:
+                ci = C[i]
+                for u in range(n):
+                    buf[u] = ci[u] + tot[u]
+                for s in range(r):
+                    if pend[s] == i:
+                        a, b = DY[v_new[s]], DY[v_old[s]]
+                        for u in range(n):
+                            buf[u] -= a[u] * a[u] - b[u] * b[u]
+                    else:
+                        t = -2.0 * dx[i, pend[s]]
+                        dd = dD[s]
+                        for u in range(n):
+                            buf[u] += t * dd[u]
+                row = buf
+                work += r
             v = np.argmin(row)
             old = img[i]
-            if row[v] < row[old] * (1.0 - 1e-12):
+            if row[v] < row[old] - 1e-12 * abs(row[old]):
                 img[i] = v
                 moved += 1
-                # every other image's cost changes through the moved one
-                for k in range(m):
-                    if k == i:
-                        continue
-                    t = dx[k, i]
-                    for u in range(n):
-                        a = t - DY[v, u]
-                        b = t - DY[old, u]
-                        C[k, u] += a * a - b * b
+                a, b = DY[v], DY[old]
+                for u in range(n):
+                    dD[r, u] = a[u] - b[u]
+                    tot[u] += a[u] * a[u] - b[u] * b[u]
+                pend[r] = i
+                v_new[r] = v
+                v_old[r] = old
+                r += 1
+            if r > 0 and (r == cap or work >= limit):
+                _flush(dx, DY, C, pend, dD, v_new, v_old, tot, r)
+                r = 0
+                work = 0
         if moved == 0:
             break
     return img
 
 
-def discrete_descent(dx, DY, img, max_sweeps):
-    """Gauss-Seidel over images: move each to the vertex of Y (any vertex) minimising
-    ``C[i, v] = sum_{j != i} (dx[i, j] - DY[v, img[j]])^2``; never increases the one-sided
-    distortion. ``C`` is formed once with a matrix product and then updated per move."""
-    img = np.array(img, dtype=np.int64)
-    dx = np.ascontiguousarray(dx, dtype=np.float64)
-    rows = DY[img]                                  # (m, n): DY[img_j, v] (DY symmetric)
-    sq = rows * rows
-    C = (dx * dx).sum(1)[:, None] - 2.0 * (dx @ rows) + sq.sum(0)[None, :]
-    C -= sq                                         # drop j == i (dx[i, i] = 0)
-    return _descent_moves(dx, DY, img, C, max_sweeps)
+@njit(cache=True)
+def place_and_descend(dx, DY, start, max_sweeps, R, C, block=16, cap=32, ratio=2.0):
+    """Greedy placement of all samples from images ``start`` of the first ones, then discrete
+    descent; returns ``(images, sum_ij (dx[i, j] - DY[img_i, img_j])^2)``.
+
+    Placement: sample k goes to the vertex v of Y minimising ``sum_{j<k} (dx[k, j] - DY[v, img_j])^2``.
+    Descent: Gauss-Seidel over images, each moving to the vertex of Y (any vertex) minimising
+    ``C[i, v] = sum_{j != i} (dx[i, j] - DY[v, img_j])^2``; it never increases the one-sided
+    distortion. ``DY`` must be symmetric (rows are read for columns). ``R`` and ``C`` are
+    ``(m, n)`` work arrays (overwritten), so that repeated calls reuse their memory.
+    """
+    m = dx.shape[0]
+    img = np.empty(m, np.int64)
+    c = start.shape[0]
+    img[:c] = start
+    _place(dx, DY, img, c, R, C, block)
+    if max_sweeps > 0:
+        _complete(dx, R, C, block)
+        img = _descend(dx, DY, img, C, max_sweeps, cap, ratio)
+    return img, _sq_dist_sum(dx, DY, img)
+
+
+@njit(cache=True)
+def coarse_starts(dx, DY, candidates, max_sweeps):
+    """:func:`place_and_descend` from each candidate image of the first sample:
+    images ``(s, m)`` and their summed squared distortions ``(s,)``."""
+    s = candidates.shape[0]
+    m = dx.shape[0]
+    n = DY.shape[0]
+    R = np.empty((m, n))
+    C = np.empty((m, n))
+    imgs = np.empty((s, m), np.int64)
+    costs = np.empty(s)
+    start = np.empty(1, np.int64)
+    for q in range(s):
+        start[0] = candidates[q]
+        img, f = place_and_descend(dx, DY, start, max_sweeps, R, C, 16, 32, 2.0)
+        imgs[q] = img
+        costs[q] = f
+    return imgs, costs

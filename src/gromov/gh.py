@@ -196,34 +196,28 @@ class MatchResult:
 
 
 # ----------------------------------------------------------------------------- initialisation
-def _one_sided_cost(dx_pp, DY, img):
-    return float(np.mean((dx_pp - DY[np.ix_(img, img)]) ** 2))
-
-
 def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *, coarse: int = 12,
                 keep: int = 4) -> np.ndarray:
     """Multi-resolution, multi-start initial images (vertex ids on Y) of samples of X.
 
     For every candidate image of the first sample, place the first ``coarse`` samples
-    greedily, polish them by discrete descent (each image moves to the best vertex of Y) and score their distortion; extend the
-    ``keep`` best to all samples (greedy placement, then discrete descent) and return the
-    one with the lowest distortion.
+    greedily, polish them by discrete descent (each image moves to the best vertex of Y) and
+    score their distortion; extend the ``keep`` best to all samples (greedy placement, then
+    discrete descent) and return the one with the lowest distortion. ``DY`` must be symmetric.
     """
+    dx_pp = np.ascontiguousarray(dx_pp, dtype=np.float64)
+    DY = np.ascontiguousarray(DY, dtype=np.float64)
     c = min(coarse, len(dx_pp))
-    scored = []
-    for f in candidates:
-        img = _kernel.greedy_place(dx_pp, DY, np.array([f], dtype=np.int64), c)
-        img = _kernel.discrete_descent(dx_pp[:c, :c].copy(), DY, img, 20)
-        scored.append((_one_sided_cost(dx_pp[:c, :c], DY, img), tuple(img)))
-    scored.sort()
+    imgs, costs = _kernel.coarse_starts(np.ascontiguousarray(dx_pp[:c, :c]), DY,
+                                        np.asarray(candidates, dtype=np.int64), 20)
+    scored = sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist()))
+    R, C = np.empty((len(dx_pp), len(DY))), np.empty((len(dx_pp), len(DY)))  # work arrays
     best, best_cost, seen = None, np.inf, set()
     for _, coarse_img in scored:
         if coarse_img in seen:
             continue
         seen.add(coarse_img)
-        img = _kernel.greedy_place(dx_pp, DY, np.asarray(coarse_img, dtype=np.int64), len(dx_pp))
-        img = _kernel.discrete_descent(dx_pp, DY, img, 20)
-        cost = _one_sided_cost(dx_pp, DY, img)
+        img, cost = _kernel.place_and_descend(dx_pp, DY, np.asarray(coarse_img, dtype=np.int64), 20, R, C)
         if cost < best_cost:
             best, best_cost = img, cost
         if len(seen) >= keep:
@@ -237,9 +231,10 @@ def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.nd
     Each point goes to the vertex v of X minimising sum_i (D_X(v, p_i) - d_i)^2: the
     reverse map that is consistent with a given forward map, so that the two halves of the
     two-sided correspondence start on the same branch (e.g. the same left/right choice).
+    ``DX`` must be symmetric (its rows ``P`` are read for its columns).
     """
-    A = DX[:, P]                                             # (n_X, M)
-    cost = (A * A).sum(1)[None, :] - 2.0 * DY_rows @ A.T     # + |d|^2, constant per row
+    At = DX[P]                                               # (M, n_X) = DX[:, P].T
+    cost = (At * At).sum(0)[None, :] - 2.0 * (DY_rows @ At)  # + |d|^2, constant per row
     return np.argmin(cost, axis=1).astype(np.int64)
 
 
@@ -248,12 +243,16 @@ def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndar
     cost = np.abs(target.descriptors - signature).sum(axis=1)
     order = np.argsort(cost, kind="stable")
     radius = 0.05 * target.diameter
+    D = target.distances
+    free = np.ones(len(order), dtype=bool)  # free[i]: order[i] is farther than radius from all chosen
     chosen: list[int] = []
-    for v in order:
-        if all(target.distances[v, c] > radius for c in chosen):
-            chosen.append(int(v))
-            if len(chosen) == k:
-                break
+    while len(chosen) < k:
+        i = int(np.argmax(free))
+        if not free[i]:
+            break
+        v = int(order[i])
+        chosen.append(v)
+        free &= D[order, v] > radius
     return np.asarray(chosen, dtype=np.int64)
 
 

@@ -122,6 +122,7 @@ class SurfaceDistance:
         self.mesh = mesh
         self.distances = d
         self.sq = np.ascontiguousarray(d * d)
+        self.max_distance = float(d.max())
         self.faces = np.ascontiguousarray(mesh.faces)
         self.neighbours = face_neighbours(mesh.faces)
 
@@ -160,24 +161,45 @@ class SymmetricGMDS:
         self.irls_rounds = int(irls_rounds)
         self.radius = radius
         self.history: list[float] = []
+        self._dx_pp = X.distances[np.ix_(self.P, self.P)]
+        self._dy_qq = Y.distances[np.ix_(self.Q, self.Q)]
+        self._recent: list = []  # (points, ex, ey) of the last few interpolations
 
     # ------------------------------------------------------------------ blocks
-    def blocks(self, img_p: SurfacePoints, img_q: SurfacePoints):
-        """Residual matrix ``(M+K, M+K)`` of the two-sided correspondence: D_X(C) - D_Y(C)."""
-        M, K = len(self.P), len(self.Q)
-        dx_pp = self.X.distances[np.ix_(self.P, self.P)]
-        dy_qq = self.Y.distances[np.ix_(self.Q, self.Q)]
+    def _between(self, img_p: SurfacePoints, img_q: SurfacePoints):
+        """``(ex, ey)``: interpolated distances P' to [P', P] on X and Q' to [Q', Q] on Y.
+
+        The last few results are kept, keyed by copies of the points, so that scoring, solving
+        and reporting the same correspondence interpolate it once.
+        """
+        for key, ex, ey in self._recent:
+            if all(np.array_equal(a, b) for a, b in zip(key, (img_p.face, img_p.bary, img_q.face, img_q.bary))):
+                return ex, ey
         ex = self.X.between(img_q, self.P)   # (K, K + M): P' to [P', P]
         ey = self.Y.between(img_p, self.Q)   # (M, M + K): Q' to [Q', Q]
+        self._remember(img_p, img_q, ex, ey)
+        return ex, ey
+
+    def _remember(self, img_p, img_q, ex, ey):
+        key = (img_p.face.copy(), img_p.bary.copy(), img_q.face.copy(), img_q.bary.copy())
+        self._recent = [(key, ex, ey)] + self._recent[:3]
+
+    def _assemble(self, ex: np.ndarray, ey: np.ndarray):
+        M, K = len(self.P), len(self.Q)
         dx = np.empty((M + K, M + K))
         dy = np.empty_like(dx)
-        dx[:M, :M], dx[M:, M:] = dx_pp, 0.5 * (ex[:, :K] + ex[:, :K].T)
+        dx[:M, :M], dx[M:, M:] = self._dx_pp, 0.5 * (ex[:, :K] + ex[:, :K].T)
         dx[M:, :M] = ex[:, K:]
         dx[:M, M:] = ex[:, K:].T
-        dy[:M, :M], dy[M:, M:] = 0.5 * (ey[:, :M] + ey[:, :M].T), dy_qq
+        dy[:M, :M], dy[M:, M:] = 0.5 * (ey[:, :M] + ey[:, :M].T), self._dy_qq
         dy[:M, M:] = ey[:, M:]
         dy[M:, :M] = ey[:, M:].T
         return dx, dy
+
+    def blocks(self, img_p: SurfacePoints, img_q: SurfacePoints):
+        """Block distance matrices ``(M+K, M+K)`` of the two-sided correspondence on X and on Y;
+        their difference is the residual D_X(C) - D_Y(C)."""
+        return self._assemble(*self._between(img_p, img_q))
 
     def distortion(self, img_p: SurfacePoints, img_q: SurfacePoints, p: float | None = None) -> float:
         """dis(C) in norm ``p`` (default: the solver's), over ordered pairs a != b."""
@@ -190,46 +212,53 @@ class SymmetricGMDS:
         w = np.ones((M + K, M + K))
         if self.radius is not None:
             # partial matching: only pairs closer than radius (in the fixed sample metric)
-            wx = (self.X.distances[np.ix_(self.P, self.P)] <= self.radius).astype(float)
-            wy = (self.Y.distances[np.ix_(self.Q, self.Q)] <= self.radius).astype(float)
+            wx = (self._dx_pp <= self.radius).astype(float)
+            wy = (self._dy_qq <= self.radius).astype(float)
             w[:M, :M], w[M:, M:] = wx, wy
         np.fill_diagonal(w, 0.0)
         return w
 
     # ------------------------------------------------------------------ optimisation
-    def _weighted(self, img_p, img_q, w):
-        dx, dy = self.blocks(img_p, img_q)
+    def _weighted(self, ex, ey, w):
+        dx, dy = self._assemble(ex, ey)
         return float(np.sum(w * (dx - dy) ** 2))
 
     def _l2_solve(self, img_p: SurfacePoints, img_q: SurfacePoints, w: np.ndarray):
         M, K = len(self.P), len(self.Q)
         X, Y = self.X, self.Y
-        eps = 1e-9 * max(X.distances.max(), Y.distances.max())
+        eps = 1e-9 * max(X.max_distance, Y.max_distance)
+        ex, ey = self._between(img_p, img_q)
         pf, pb = img_p.face.copy(), img_p.bary.copy()
         qf, qb = img_q.face.copy(), img_q.bary.copy()
-        cur = self._weighted(SurfacePoints(pf, pb), SurfacePoints(qf, qb), w)
+        cur = self._weighted(ex, ey, w)
         self.history.append(cur)
+        wy = np.ascontiguousarray(np.hstack([w[:M, :M], w[:M, M:]]))
+        wx = np.ascontiguousarray(np.hstack([w[M:, M:], w[M:, :M]]))
+        delta_y = np.empty((M, M + K))
+        delta_y[:, :M] = self._dx_pp
+        delta_x = np.empty((K, K + M))
+        delta_x[:, :K] = self._dy_qq
         n_iter = 0
         converged = False
         for n_iter in range(1, self.max_iter + 1):
-            # Q' on Y: targets to [Q', Q] are d_X(P, P) and d_X(P, P')
-            ex = X.between(SurfacePoints(qf, qb), self.P)  # (K, K + M)
-            delta_y = np.hstack([X.distances[np.ix_(self.P, self.P)], ex[:, K:].T])
-            wy = np.hstack([w[:M, :M], w[:M, M:]])
+            # Q' on Y: targets to [Q', Q] are d_X(P, P) and d_X(P, P'); ex is that of the current P'
+            delta_y[:, M:] = ex[:, K:].T
             sweep(pf, pb, self.Q, delta_y, wy, Y.sq, Y.faces, Y.neighbours, self.n_newton, eps)
             # P' on X: targets to [P', P] are d_Y(Q, Q) and d_Y(Q, Q')
             ey = Y.between(SurfacePoints(pf, pb), self.Q)  # (M, M + K)
-            delta_x = np.hstack([Y.distances[np.ix_(self.Q, self.Q)], ey[:, M:].T])
-            wx = np.hstack([w[M:, M:], w[M:, :M]])
+            delta_x[:, K:] = ey[:, M:].T
             sweep(qf, qb, self.P, delta_x, wx, X.sq, X.faces, X.neighbours, self.n_newton, eps)
-            new = self._weighted(SurfacePoints(pf, pb), SurfacePoints(qf, qb), w)
+            ex = X.between(SurfacePoints(qf, qb), self.P)  # (K, K + M)
+            new = self._weighted(ex, ey, w)
             self.history.append(new)
             if cur - new <= self.tol * max(cur, 1e-300):
                 converged = True
                 cur = new
                 break
             cur = new
-        return SurfacePoints(pf, pb), SurfacePoints(qf, qb), n_iter, converged
+        img_p, img_q = SurfacePoints(pf, pb), SurfacePoints(qf, qb)
+        self._remember(img_p, img_q, ex, ey)
+        return img_p, img_q, n_iter, converged
 
     def solve(self, img_p: SurfacePoints, img_q: SurfacePoints):
         """Optimise from the given initial images; returns ``(img_p, img_q, n_iter, converged)``."""
