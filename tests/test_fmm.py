@@ -180,8 +180,10 @@ def test_cat_working_mesh_against_exact_geodesics(cat_working):
     v, f = np.asarray(w.vertices), np.asarray(w.faces)
     rel = _rel_err(FastMarching(v, f).distances(src), exact)
     rel_plain = _rel_err(FastMarching(v, f, _update="source").distances(src), exact)
-    # 0.21%, 0.81%, 3.4% when written (0.38%, 1.04%, 4.8% without directions; 0.20%,
-    # 0.93%, 8.5% on the given triangulation, without the consistency test)
+    # 0.198%, 0.82%, 3.4% when written (0.38%, 1.04%, 4.8% without directions; 0.20%,
+    # 0.93%, 8.5% on the given triangulation, without the consistency test). The issue's
+    # 3% max is not met: the 3.4% is an underestimate at a shock, where a rejected fit
+    # falls back to a planar value that is too small (see _fmm's docstring).
     assert rel.mean() <= 0.005, rel.mean()
     assert np.percentile(rel, 99) <= 0.012, np.percentile(rel, 99)
     assert rel.max() <= 0.05, rel.max()
