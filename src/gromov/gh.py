@@ -252,7 +252,7 @@ def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndar
             break
         v = int(order[i])
         chosen.append(v)
-        free &= D[order, v] > radius
+        free &= D[v][order] > radius  # D is symmetric: a row, not a column
     return np.asarray(chosen, dtype=np.int64)
 
 
