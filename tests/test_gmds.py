@@ -142,3 +142,86 @@ def test_correspondence_error_reports_the_branch():
     assert max(err.mean, err.mirrored_mean) > 0.1
     with pytest.raises(ValueError, match="not a vertex"):
         sy.input.from_input_ids([10**6])
+
+
+# ----------------------------------------------------------------------------- compiled kernels
+def _random_metric(n, seed):
+    """A symmetric distance matrix with zero diagonal: Euclidean distances of random points."""
+    p = np.random.default_rng(seed).normal(size=(n, 3))
+    return np.sqrt(((p[:, None] - p[None]) ** 2).sum(-1))
+
+
+def _direct_costs(dx, DY, img):
+    """C[i, v] = sum_{j != i} (dx[i, j] - DY[v, img_j])^2, from scratch."""
+    r = dx[:, None, :] - DY[:, img].T[None, :, :].transpose(0, 2, 1)   # (m, n, m)
+    r[np.arange(len(img)), :, np.arange(len(img))] = 0.0
+    return (r ** 2).sum(-1)
+
+
+@pytest.mark.parametrize("blas", [False, True])
+def test_discrete_descent_ends_in_a_discrete_local_minimum(blas):
+    from gromov import _gmds_kernel as K
+
+    DX, DY = _random_metric(60, 1), _random_metric(200, 2)
+    P = np.arange(0, 60, 2)
+    dx = np.ascontiguousarray(DX[np.ix_(P, P)])
+    R, C = np.empty((len(P), len(DY))), np.empty((len(P), len(DY)))
+    run = K.place_and_descend_blas if blas else K.place_and_descend
+    placed, _ = run(dx, DY, np.array([5], np.int64), 0, R, C)
+    # greedy placement: each sample is at the best vertex given the ones before it
+    for k in range(1, len(P)):
+        cost = ((dx[k, :k][None, :] - DY[:, placed[:k]]) ** 2).sum(1)
+        assert placed[k] == np.argmin(cost)
+    img, f = run(dx, DY, np.array([5], np.int64), 50, R, C)
+    assert f == pytest.approx(((dx - DY[np.ix_(img, img)]) ** 2).sum())
+    assert f <= ((dx - DY[np.ix_(placed, placed)]) ** 2).sum()
+    # no single image can move to a better vertex
+    C0 = _direct_costs(dx, DY, img)
+    assert np.all(C0[np.arange(len(P)), img] <= C0.min(1) * (1 + 1e-9))
+
+
+def test_descent_with_blas_passes_matches_the_compiled_one():
+    from gromov import _gmds_kernel as K
+
+    DX, DY = _random_metric(80, 3), _random_metric(300, 4)
+    dx = np.ascontiguousarray(DX[:40, :40])
+    R, C = np.empty((40, 300)), np.empty((40, 300))
+    for start in (0, 17, 123):
+        a = K.place_and_descend(dx, DY, np.array([start], np.int64), 20, R, C)
+        b = K.place_and_descend_blas(dx, DY, np.array([start], np.int64), 20, R, C)
+        np.testing.assert_array_equal(a[0], b[0])
+
+
+def test_argmin_is_numpys():
+    from gromov._gmds_kernel import _argmin
+
+    rng = np.random.default_rng(0)
+    for n in (1, 7, 8, 9, 3001):
+        x = rng.normal(size=n)
+        assert _argmin(x) == np.argmin(x)
+        x[-1] = x.min()  # a tie: the first one
+        assert _argmin(x) == np.argmin(x)
+
+
+def test_interpolated_distances_are_bilinear_in_squared_distances():
+    from gromov._gmds_kernel import pair_distances
+
+    g = grid(11, 6)
+    D = ShapeMetric(g, "geodesic", resolution=None).distances
+    D2, F = D * D, np.ascontiguousarray(g.faces)
+    rng = np.random.default_rng(0)
+    vt = rng.integers(0, len(F), 7)
+    vu = rng.random((7, 3))
+    vu /= vu.sum(1, keepdims=True)
+    fixed = np.array([0, 5, 30], np.int64)
+    out = pair_distances(vt, vu, fixed, D2, F)
+    for i in range(7):
+        for j in range(7):
+            want = 0.0 if i == j else np.sqrt(vu[i] @ D2[np.ix_(F[vt[i]], F[vt[j]])] @ vu[j])
+            assert out[i, j] == pytest.approx(want, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(out[i, 7:], np.sqrt(vu[i] @ D2[np.ix_(F[vt[i]], fixed)]), rtol=1e-12)
+    # exact at vertices
+    at = np.eye(3)[rng.integers(0, 3, 7)]
+    out = pair_distances(vt, at, fixed, D2, F)
+    v = F[vt, np.argmax(at, 1)]
+    np.testing.assert_allclose(out[:, 7:], D[np.ix_(v, fixed)], rtol=1e-12, atol=1e-12)

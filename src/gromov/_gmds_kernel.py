@@ -393,31 +393,19 @@ def _flush(dx, DY, C, pend, dD, v_new, v_old, tot, r):
 
 
 @njit(cache=True)
-def _descend(dx, DY, img, C, max_sweeps, cap, ratio):
-    """Gauss-Seidel over images on the cost table ``C`` (see :func:`place_and_descend`).
+def _descend_steps(dx, DY, img, C, max_sweeps, state, pend, v_new, v_old, dD, tot, buf, limit):
+    """Gauss-Seidel over images on the cost table ``C``, resumable (see :func:`_descend`).
 
-    A move of image i from ``old`` to ``v`` changes every other row k of ``C`` by
-    ``dS - 2 dx[k, i] dD`` with ``dS = DY[v]^2 - DY[old]^2`` and ``dD = DY[v] - DY[old]``.
-    Moves are kept pending (their ``dD`` rows, small enough to stay in cache) and added to a
-    row only when it is read; they are applied to all of ``C`` in one pass once the rows
-    read since the last pass, times the moves pending, reach ``ratio`` times the rows of
-    ``C``, or ``cap`` moves are pending. This reads and writes ``C`` (too large for the
-    cache) a few times per sweep instead of once per move.
+    ``state`` = (sweep, next sample, moves this sweep, pending moves, work since the last
+    pass). Returns True when the pending moves are due to be applied to ``C`` (the caller
+    applies them, sets ``state[3:5] = 0`` and calls again), False when the descent is over.
     """
     m = img.shape[0]
     n = DY.shape[0]
-    pend = np.empty(cap, np.int64)
-    v_new = np.empty(cap, np.int64)
-    v_old = np.empty(cap, np.int64)
-    dD = np.empty((cap, n))
-    tot = np.zeros(n)  # sum of the pending dS
-    buf = np.empty(n)
-    r = 0
-    work = 0
-    limit = ratio * m
-    for _ in range(max_sweeps):
-        moved = 0
-        for i in range(m):
+    cap = pend.shape[0]
+    sw, i, moved, r, work = state[0], state[1], state[2], state[3], state[4]
+    while sw < max_sweeps:
+        while i < m:
             if r == 0:
                 row = C[i]
             else:
@@ -425,7 +413,7 @@ def _descend(dx, DY, img, C, max_sweeps, cap, ratio):
                 for u in range(n):
                     buf[u] = ci[u] + tot[u]
                 for s in range(r):
-                    if pend[s] == i:
+                    if pend[s] == i:  # row i leaves out its own image: take back that move's dS
                         a, b = DY[v_new[s]], DY[v_old[s]]
                         for u in range(n):
                             buf[u] -= a[u] * a[u] - b[u] * b[u]
@@ -449,12 +437,90 @@ def _descend(dx, DY, img, C, max_sweeps, cap, ratio):
                 v_new[r] = v
                 v_old[r] = old
                 r += 1
+            i += 1
             if r > 0 and (r == cap or work >= limit):
-                _flush(dx, DY, C, pend, dD, v_new, v_old, tot, r)
-                r = 0
-                work = 0
+                state[0], state[1], state[2], state[3], state[4] = sw, i, moved, r, work
+                return True
         if moved == 0:
             break
+        sw += 1
+        i = 0
+        moved = 0
+    state[0], state[1], state[2], state[3], state[4] = max_sweeps, m, 0, r, work
+    return False
+
+
+@njit(cache=True)
+def _take_back_own(C, DY, pend, v_new, v_old, r):
+    """Row k of ``C`` leaves out image k: undo the ``dS`` a pass added for k's own moves."""
+    n = C.shape[1]
+    for s in range(r):
+        ck = C[pend[s]]
+        a, b = DY[v_new[s]], DY[v_old[s]]
+        for u in range(n):
+            ck[u] -= a[u] * a[u] - b[u] * b[u]
+
+
+def _work_arrays(cap, n):
+    return (np.zeros(5, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
+            np.empty(cap, np.int64), np.empty((cap + 1, n)), np.zeros(n), np.empty(n))
+
+
+@njit(cache=True)
+def _descend(dx, DY, img, C, max_sweeps, cap, ratio):
+    """Gauss-Seidel over images on the cost table ``C`` (see :func:`place_and_descend`).
+
+    A move of image i from ``old`` to ``v`` changes every other row k of ``C`` by
+    ``dS - 2 dx[k, i] dD`` with ``dS = DY[v]^2 - DY[old]^2`` and ``dD = DY[v] - DY[old]``.
+    Moves are kept pending (their ``dD`` rows, small enough to stay in cache) and added to a
+    row only when it is read; they are applied to all of ``C`` in one pass once the rows
+    read since the last pass, times the moves pending, reach ``ratio`` times the rows of
+    ``C``, or ``cap`` moves are pending. This reads and writes ``C`` (too large for the
+    cache) a few times per sweep instead of once per move.
+    """
+    n = DY.shape[0]
+    state = np.zeros(5, np.int64)
+    pend = np.empty(cap, np.int64)
+    v_new = np.empty(cap, np.int64)
+    v_old = np.empty(cap, np.int64)
+    dD = np.empty((cap + 1, n))
+    tot = np.zeros(n)  # sum of the pending dS
+    buf = np.empty(n)
+    limit = ratio * img.shape[0]
+    while _descend_steps(dx, DY, img, C, max_sweeps, state, pend, v_new, v_old, dD, tot, buf, limit):
+        _flush(dx, DY, C, pend, dD, v_new, v_old, tot, state[3])
+        state[3] = 0
+        state[4] = 0
+    return img
+
+
+def descend_blas(dx, DY, img, C, max_sweeps, *, cap=32, ratio=2.0):
+    """:func:`_descend` with the passes over ``C`` as one BLAS product each (``C`` C-ordered).
+
+    A pass adds ``[-2 dx[:, pend], 1] @ [dD; tot]`` to ``C`` (``dgemm`` with ``beta = 1``,
+    in place on ``C.T``), then takes back each moved image's ``dS`` from its own row.
+    """
+    from scipy.linalg.blas import dgemm
+
+    m = len(img)
+    state, pend, v_new, v_old, dD, tot, buf = _work_arrays(cap, DY.shape[0])
+    coef = np.empty((m, cap + 1))
+    Ct = C.T  # Fortran-ordered view: dgemm updates it in place
+    while _descend_steps(dx, DY, img, C, max_sweeps, state, pend, v_new, v_old, dD, tot, buf, ratio * m):
+        r = int(state[3])
+        I = pend[:r]
+        dD[r] = tot
+        coef[:, :r] = dx[:, I]
+        coef[:, :r] *= -2.0
+        coef[I, np.arange(r)] = 0.0  # row k leaves out its own image
+        coef[:, r] = 1.0
+        out = dgemm(1.0, dD[: r + 1].T, coef[:, : r + 1].T, 1.0, Ct, overwrite_c=True)
+        if not np.shares_memory(out, C):  # pragma: no cover - dgemm copied instead of updating
+            C[...] = out.T
+        _take_back_own(C, DY, pend, v_new, v_old, r)
+        tot[:] = 0.0
+        state[3] = 0
+        state[4] = 0
     return img
 
 
@@ -498,3 +564,16 @@ def coarse_starts(dx, DY, candidates, max_sweeps):
         imgs[q] = img
         costs[q] = f
     return imgs, costs
+
+
+def place_and_descend_blas(dx, DY, start, max_sweeps, R, C, *, block=16, cap=32, ratio=2.0):
+    """:func:`place_and_descend` with the descent's passes over ``C`` done by BLAS
+    (:func:`descend_blas`): for many samples, where those passes are most of the work."""
+    m = dx.shape[0]
+    img = np.empty(m, np.int64)
+    img[: len(start)] = start
+    _place(dx, DY, img, len(start), R, C, block)
+    if max_sweeps > 0:
+        _complete(dx, R, C, block)
+        img = descend_blas(dx, DY, img, C, max_sweeps, cap=cap, ratio=ratio)
+    return img, _sq_dist_sum(dx, DY, img)

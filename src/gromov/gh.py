@@ -217,7 +217,7 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *, co
         if coarse_img in seen:
             continue
         seen.add(coarse_img)
-        img, cost = _kernel.place_and_descend(dx_pp, DY, np.asarray(coarse_img, dtype=np.int64), 20, R, C)
+        img, cost = _kernel.place_and_descend_blas(dx_pp, DY, np.asarray(coarse_img, dtype=np.int64), 20, R, C)
         if cost < best_cost:
             best, best_cost = img, cost
         if len(seen) >= keep:
