@@ -18,6 +18,7 @@ from .metrics import (
     GeodesicSolver,
     GraphDiffusionSolver,
     HeatDiffusionSolver,
+    BiharmonicSolver,
     MetricSolver,
     distance_matrix,
     metric_solver,
@@ -30,7 +31,7 @@ __version__ = "0.1.0"
 __all__ = [
     "GromovError", "GromovWarning", "MeshError", "MeshFormatError", "MetricError",
     "load", "save", "Mesh", "PointCloud", "RepairReport", "repair",
-    "MetricSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver",
+    "MetricSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver",
     "EuclideanSolver", "metric_solver", "distance_matrix",
     "WorkingMesh", "simplify", "working_mesh", "Samples", "farthest_point_sampling",
     "ShapeMetric", "MatchResult", "match", "perturb",

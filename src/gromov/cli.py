@@ -47,7 +47,7 @@ def _metric_options(args) -> dict:
         if args.kernel == "heat":
             if args.tau is not None:
                 opts["tau"] = args.tau
-        else:
+        elif args.kernel != "biharmonic":
             opts["m"] = args.steps
         return opts
     return {}
@@ -58,9 +58,10 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                    help="distance on the surface (default: diffusion)")
     p.add_argument("--geodesic-method", choices=("fmm", "heat", "exact", "dijkstra"), default=None,
                    help="geodesic backend (default: fmm on meshes, dijkstra on point clouds)")
-    p.add_argument("--kernel", choices=("heat", "connectivity", "gaussian"), default="heat",
+    p.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
                    help="diffusion kernel: the resolution-independent Laplace-Beltrami heat kernel "
-                        "(default), the paper's connectivity kernel, or a Gaussian k-NN kernel")
+                        "(default), the paper's connectivity kernel, a Gaussian k-NN kernel, or the "
+                        "biharmonic distance (heat-kernel distances integrated over all times)")
     p.add_argument("--steps", type=_positive_int, default=50,
                    help="diffusion steps m of the graph kernels (default 50)")
     p.add_argument("--tau", type=float, default=None,

@@ -14,6 +14,7 @@ from .diffusion import (
     DIFFUSION_KERNELS,
     GraphDiffusionSolver,
     HeatDiffusionSolver,
+    BiharmonicSolver,
     affinity,
     brute_force_diffusion_distance,
     cotan_laplacian,
@@ -24,7 +25,7 @@ from .geodesic import GEODESIC_METHODS, GeodesicSolver
 
 __all__ = [
     "METRICS", "MetricSolver", "metric_solver", "distance_matrix", "check_sources",
-    "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver", "EuclideanSolver",
+    "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "EuclideanSolver",
     "GEODESIC_METHODS", "DIFFUSION_KERNELS", "affinity", "diffusion_operator",
     "brute_force_diffusion_distance", "cotan_laplacian",
 ]
@@ -42,7 +43,8 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
     **options
         Passed to the solver. ``geodesic``: ``method`` ("fmm", "heat", "exact",
         "dijkstra"), ``k``. ``diffusion``: ``kernel`` ("connectivity" -- the paper's --,
-        "gaussian", or "heat" for the resolution-independent Laplace-Beltrami heat kernel),
+        "gaussian", "heat" for the resolution-independent Laplace-Beltrami heat kernel, or
+        "biharmonic" for the heat-kernel distance integrated over all times),
         then ``m``, ``density_normalize``, ``sigma``, ``k`` (graph kernels) or ``tau``,
         ``laplacian`` (heat kernel), and ``rtol``.
 
@@ -56,6 +58,8 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
         kernel = options.pop("kernel", "heat")
         if kernel == "heat":
             return HeatDiffusionSolver(shape, **options)
+        if kernel == "biharmonic":
+            return BiharmonicSolver(shape, **options)
         if kernel not in DIFFUSION_KERNELS:
             raise ValueError(f"diffusion kernel must be one of {DIFFUSION_KERNELS}, got {kernel!r}")
         return GraphDiffusionSolver(shape, kernel=kernel, **options)

@@ -56,12 +56,12 @@ from ._base import MetricSolver, check_shape
 
 __all__ = [
     "affinity", "diffusion_operator", "cotan_laplacian", "brute_force_diffusion_distance",
-    "GraphDiffusionSolver", "HeatDiffusionSolver", "DIFFUSION_KERNELS",
+    "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "DIFFUSION_KERNELS",
 ]
 
 logger = logging.getLogger(__name__)
 
-DIFFUSION_KERNELS = ("connectivity", "gaussian", "heat")
+DIFFUSION_KERNELS = ("connectivity", "gaussian", "heat", "biharmonic")
 
 
 # ----------------------------------------------------------------------------- operators
@@ -337,28 +337,9 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         super().__init__(shape, rtol)
         if not tau > 0:
             raise ValueError(f"tau must be positive, got {tau}")
-        if laplacian not in ("cotan", "robust"):
-            raise ValueError(f"laplacian must be 'cotan' or 'robust', got {laplacian!r}")
         self.tau = float(tau)
-        self.laplacian = laplacian if isinstance(shape, Mesh) else "robust"
-        if self.laplacian == "cotan":
-            self.stiffness, self.mass = cotan_laplacian(shape)
-            area = shape.area
-        else:
-            import robust_laplacian as rl
-
-            v = np.array(shape.vertices)
-            if isinstance(shape, Mesh):
-                lap, mass = rl.mesh_laplacian(v, np.array(shape.faces))
-            else:
-                lap, mass = rl.point_cloud_laplacian(v)
-            self.stiffness, self.mass = sp.csr_matrix(lap), sp.csr_matrix(mass)
-            area = float(self.mass.diagonal().sum())
-        self.area = float(area)
+        self.laplacian, self.stiffness, self.mass, self.area = _laplacian(shape, laplacian, "heat diffusion")
         self.t = self.tau * self.area
-        if np.any(self.mass.diagonal() <= 0):
-            raise MetricError("heat diffusion needs positive vertex areas: remove unreferenced or "
-                              "isolated vertices first (gromov.repair)")
 
     def _compute_embedding(self):
         n, t, area = self.n_vertices, self.t, self.area
@@ -391,6 +372,125 @@ class HeatDiffusionSolver(_SpectralDiffusion):
     def __repr__(self) -> str:
         return (f"HeatDiffusionSolver(n_vertices={self.n_vertices}, tau={self.tau}, "
                 f"laplacian={self.laplacian!r})")
+
+
+def _laplacian(shape, laplacian: str, what: str):
+    """``(name, stiffness L, lumped mass M, area)`` of a mesh or point cloud."""
+    if laplacian not in ("cotan", "robust"):
+        raise ValueError(f"laplacian must be 'cotan' or 'robust', got {laplacian!r}")
+    laplacian = laplacian if isinstance(shape, Mesh) else "robust"
+    if laplacian == "cotan":
+        stiffness, mass = cotan_laplacian(shape)
+        area = shape.area
+    else:
+        import robust_laplacian as rl
+
+        v = np.array(shape.vertices)
+        if isinstance(shape, Mesh):
+            lap, m = rl.mesh_laplacian(v, np.array(shape.faces))
+        else:
+            lap, m = rl.point_cloud_laplacian(v)
+        stiffness, mass = sp.csr_matrix(lap), sp.csr_matrix(m)
+        area = float(mass.diagonal().sum())
+    if np.any(mass.diagonal() <= 0):
+        raise MetricError(f"{what} needs positive vertex areas: remove unreferenced or "
+                          "isolated vertices first (gromov.repair)")
+    return laplacian, stiffness, mass, float(area)
+
+
+class BiharmonicSolver(MetricSolver):
+    r"""Biharmonic distance: the heat-kernel diffusion distance integrated over all times.
+
+    With the generalised eigenpairs :math:`L\phi_k = \lambda_k M \phi_k` of the heat kernel
+    above (Lipman, Rustamov & Funkhouser, "Biharmonic distance", ACM TOG 29(3), 2010),
+
+    .. math:: d_B^2(x, y) = \sum_{k \ge 1} \frac{(\phi_k(x) - \phi_k(y))^2}{\lambda_k^2}
+              = 4 \int_0^\infty t \, d_t^2(x, y) \, dt ,
+
+    since :math:`\int_0^\infty t e^{-2\lambda t} dt = 1/(4\lambda^2)`: a multi-scale
+    diffusion distance with no time to choose. It is bending-invariant (intrinsic, through
+    ``L`` and ``M``), has the units of length (scaling a shape by ``s`` scales it by ``s``),
+    and is smooth and globally informative (far pairs are not saturated, unlike
+    :math:`d_t` at small ``t``).
+
+    **Computation** (exact, no truncation): :math:`G = \Phi' \Lambda'^{-2} \Phi'^T` (the
+    non-constant eigenpairs) is, up to an added constant that cancels in
+    :math:`d_B^2 = G_{xx} + G_{yy} - 2 G_{xy}`, the inverse of the positive definite
+    :math:`H = L M^{-1} L + \alpha^2 M 1 1^T M / A` (``A`` the area; the rank-one term gives
+    the constant eigenvector the eigenvalue :math:`\alpha^2`, :math:`\alpha = 4\pi/A`,
+    Weyl's estimate of :math:`\lambda_1`). One dense Cholesky factorisation and inverse,
+    :math:`O(n^3)`: about 1-2 s at 3,000 vertices. Each connected component is solved on
+    its own; distances between components are ``inf``.
+
+    Parameters
+    ----------
+    shape : Mesh or PointCloud
+    laplacian : {"cotan", "robust"}, default "cotan"
+        As in :class:`HeatDiffusionSolver` (point clouds always use the robust Laplacian).
+    """
+
+    name = "diffusion"
+    symmetric_rows = True
+
+    def __init__(self, shape, *, laplacian: str = "cotan"):
+        shape = check_shape(shape, metric="diffusion")
+        super().__init__(shape)
+        self.laplacian, self.stiffness, self.mass, self.area = _laplacian(shape, laplacian,
+                                                                          "biharmonic distance")
+
+    def _components(self):
+        if isinstance(self.shape, Mesh):
+            return self.shape.n_components, self.shape.component_labels
+        from scipy.sparse.csgraph import connected_components
+
+        return connected_components(self.stiffness, directed=False)
+
+    def pairwise(self, *, progress=None, chunk: int = 256) -> np.ndarray:
+        if self._pairwise is None:
+            from scipy.linalg import lapack
+            from threadpoolctl import threadpool_limits
+
+            n = self.n_vertices
+            d = np.full((n, n), np.inf)
+            n_comp, labels = self._components()
+            m = self.mass.diagonal()
+            for c in range(n_comp):
+                idx = np.flatnonzero(labels == c)
+                if len(idx) == 1:
+                    d[idx[0], idx[0]] = 0.0
+                    continue
+                lap = self.stiffness[idx][:, idx]
+                mc = m[idx]
+                area = float(mc.sum())
+                alpha = 4.0 * np.pi / area
+                h = (lap @ sp.diags(1.0 / mc) @ lap).toarray()
+                h += (alpha**2 / area) * np.outer(mc, mc)
+                # two BLAS threads at most: next to other work more only slows it down
+                with threadpool_limits(limits=2, user_api="blas"):
+                    cho, info = lapack.dpotrf(h, lower=0, overwrite_a=1)
+                    if info != 0:
+                        raise MetricError(f"biharmonic distance: the operator is not positive "
+                                          f"definite (LAPACK dpotrf info={info})")
+                    g, info = lapack.dpotri(cho, lower=0, overwrite_c=1)
+                g = np.triu(g)
+                g += np.triu(g, 1).T
+                diag = np.diag(g).copy()
+                d2 = diag[:, None] + diag[None, :] - 2.0 * g
+                np.maximum(d2, 0.0, out=d2)
+                d[np.ix_(idx, idx)] = np.sqrt(d2, out=d2)
+            d = 0.5 * (d + d.T)
+            np.fill_diagonal(d, 0.0)
+            d.flags.writeable = False
+            self._pairwise = d
+            if progress is not None:
+                progress(n)
+        return self._pairwise
+
+    def _rows(self, sources):
+        return np.array(self.pairwise()[sources])
+
+    def __repr__(self) -> str:
+        return f"BiharmonicSolver(n_vertices={self.n_vertices}, laplacian={self.laplacian!r})"
 
 
 def _dense_generalized(stiffness, mass):
