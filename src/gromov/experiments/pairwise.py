@@ -47,6 +47,20 @@ def _pair(ij):
     return r.distance, r.relative_distance, (r if (i, j) in _KEEP else None)
 
 
+def _one_thread_per_worker():
+    """Worker initializer: ``jobs`` processes already fill the cores.
+
+    Numba's parallel kernels and the BLAS thread pool would otherwise each start one thread
+    per core in every worker; spinning BLAS threads competing for the same cores slow every
+    match several times over.
+    """
+    import numba
+    from threadpoolctl import threadpool_limits
+
+    numba.set_num_threads(1)
+    threadpool_limits(limits=1)
+
+
 def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolution: int | None = 3000,
             metric_options: dict | None = None, progress: bool = False) -> list[ShapeMetric]:
     """Each shape's working mesh, dense metric, diameter, descriptors and samples, once.
@@ -79,7 +93,8 @@ def _run(prepared, pairs, keep, jobs, progress, desc, options):
     try:
         with tqdm(total=len(pairs), desc=desc, disable=not progress, leave=False) as bar:
             if jobs > 1 and len(pairs) > 1 and "fork" in mp.get_all_start_methods():
-                with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork")) as pool:
+                with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork"),
+                                         initializer=_one_thread_per_worker) as pool:
                     for r in pool.map(_pair, pairs, chunksize=max(1, len(pairs) // (8 * jobs))):
                         out.append(r)
                         bar.update(1)
