@@ -84,3 +84,17 @@ def test_settings_and_user_errors(tmp_path, capsys):
     assert main(["reproduce", "--data", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
     assert "no tosca/ directory" in capsys.readouterr().err
     assert main(["reproduce", "--data", str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
+
+
+def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
+    code, out = quick_run
+    r = json.loads((out / "results.json").read_text())
+    assert r["params"]["metric_options"]["diffusion"] == {"kernel": "heat"}  # the CLI's default
+    assert main(["reproduce", "--quick", "--kernel", "biharmonic", "--tau", "0.01",
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "--tau is the heat kernel's diffusion time" in capsys.readouterr().err
+    from gromov.experiments.reproduce import reproduce
+
+    with pytest.raises(ValueError, match="diffusion kernel must be one of"):
+        reproduce(None, tmp_path / "o", quick=True, diffusion={"kernel": "cosine"})
+    assert not (tmp_path / "o").exists()  # refused before any work

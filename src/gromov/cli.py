@@ -292,8 +292,13 @@ def cmd_reproduce(args) -> int:
     if args.data is not None:
         data = data_root(args.data or None)   # "--data" alone: $GROMOV_DATA or ../shared/data
     command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
+    diffusion = {"kernel": args.kernel}
+    if args.tau is not None:
+        if args.kernel != "heat":
+            raise _UserError("--tau is the heat kernel's diffusion time: use it with --kernel heat")
+        diffusion["tau"] = args.tau
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
-                  command=command.strip())
+                  command=command.strip(), diffusion=diffusion)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -373,6 +378,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="worker processes (default: the CPUs available)")
     q.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    q.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
+                   help="diffusion metric: heat kernel (default), the paper's connectivity-kernel graph "
+                        "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
+    q.add_argument("--tau", type=float, default=None,
+                   help="heat-kernel diffusion time relative to the area (default 0.005)")
     q.set_defaults(func=cmd_reproduce)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")

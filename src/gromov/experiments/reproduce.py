@@ -523,7 +523,8 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
 
 # ----------------------------------------------------------------------------- main
 def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: int | None = None,
-              seed: int = 0, quiet: bool = False, command: str | None = None) -> dict:
+              seed: int = 0, quiet: bool = False, command: str | None = None,
+              diffusion: dict | None = None) -> dict:
     """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
 
     Parameters
@@ -544,6 +545,11 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         No progress output on stderr.
     command : str, optional
         The command line, recorded in the results.
+    diffusion : dict, optional
+        Options of the diffusion metric (:func:`gromov.metric_solver`), e.g.
+        ``{"kernel": "connectivity", "m": 50}`` for the paper's graph diffusion or
+        ``{"kernel": "biharmonic"}``; default: the heat kernel at tau = 0.005. Recorded in
+        ``params``.
 
     Returns
     -------
@@ -565,6 +571,13 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
             raise datasets.DatasetError(f"{data}: no tosca/ directory (expected the layout of "
                                         f"../shared/data: tosca/cat0.off.gz, ...)")
     st = settings_for(dataset, quick, seed=seed)
+    if diffusion:
+        from ..metrics import DIFFUSION_KERNELS
+
+        kernel = diffusion.get("kernel", "heat")
+        if kernel not in DIFFUSION_KERNELS:
+            raise ValueError(f"diffusion kernel must be one of {DIFFUSION_KERNELS}, got {kernel!r}")
+        st.metric_options["diffusion"] = dict(diffusion)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     collection = _collection(dataset, data)
