@@ -65,15 +65,19 @@ def test_units_of_length_and_bending_invariance():
 
 
 def test_components_are_solved_apart_and_infinitely_far():
-    a = icosphere(1)
-    b = Mesh(a.vertices + [5.0, 0.0, 0.0], a.faces)
-    both = Mesh(np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, a.faces + a.n_vertices]))
+    a, b = icosphere(1), icosphere(2, radius=0.5)
+    b = Mesh(b.vertices + [5.0, 0.0, 0.0], b.faces)
+    both = Mesh(np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + a.n_vertices]))
     d = BiharmonicSolver(both).pairwise()
     n = a.n_vertices
     assert np.all(np.isinf(d[:n, n:])) and np.all(np.isinf(d[n:, :n]))
-    alone = BiharmonicSolver(a).pairwise()
-    np.testing.assert_allclose(d[:n, :n], alone, atol=1e-10 * alone.max())
-    np.testing.assert_allclose(d[n:, n:], alone, atol=1e-10 * alone.max())
+    for block, alone in ((d[:n, :n], BiharmonicSolver(a).pairwise()), (d[n:, n:], BiharmonicSolver(b).pairwise())):
+        np.testing.assert_allclose(block, alone, atol=1e-10 * alone.max())
+    assert not d.flags.writeable
+    # a point cloud of two far clusters: components from the robust Laplacian's graph
+    pts = np.vstack([a.vertices, b.vertices])
+    dc = BiharmonicSolver(PointCloud(pts)).pairwise()
+    assert np.all(np.isinf(dc[:n, n:])) and np.all(np.isfinite(dc[:n, :n])) and np.all(np.isfinite(dc[n:, n:]))
 
 
 def test_point_cloud_and_errors():

@@ -90,6 +90,10 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
         (["distances", "{sphere}", "--out", "{tmp}/missing/x.npz"], "does not exist"),
         (["distances", "{sphere}", "--metric", "diffusion", "--steps", "0", "--out", "x.npz"],
          "positive integer"),
+        (["distances", "{sphere}", "--metric", "diffusion", "--kernel", "biharmonic", "--tau", "0.1",
+          "--out", "{tmp}/x.npz"], "--tau is the heat kernel's"),
+        (["distances", "{sphere}", "--metric", "diffusion", "--steps", "20", "--out", "{tmp}/x.npz"],
+         "--steps is the graph kernels'"),
     ],
 )
 def test_user_errors_are_one_line_without_traceback(tmp_path, argv, message):

@@ -97,4 +97,8 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
 
     with pytest.raises(ValueError, match="diffusion kernel must be one of"):
         reproduce(None, tmp_path / "o", quick=True, diffusion={"kernel": "cosine"})
+    with pytest.raises(ValueError, match="tau must be positive"):
+        reproduce(None, tmp_path / "o", quick=True, diffusion={"kernel": "heat", "tau": -1.0})
+    with pytest.raises(ValueError, match="diffusion options"):
+        reproduce(None, tmp_path / "o", quick=True, diffusion={"kernel": "biharmonic", "m": 50})
     assert not (tmp_path / "o").exists()  # refused before any work

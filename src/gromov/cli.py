@@ -43,14 +43,24 @@ def _metric_options(args) -> dict:
     if args.metric == "geodesic":
         return {"method": args.geodesic_method} if args.geodesic_method else {}
     if args.metric == "diffusion":
-        opts = {"kernel": args.kernel}
-        if args.kernel == "heat":
-            if args.tau is not None:
-                opts["tau"] = args.tau
-        elif args.kernel != "biharmonic":
-            opts["m"] = args.steps
-        return opts
+        return _diffusion_options(args)
     return {}
+
+
+def _diffusion_options(args) -> dict:
+    """Options of the diffusion metric from ``--kernel``, ``--tau`` and ``--steps``."""
+    opts = {"kernel": args.kernel}
+    if args.tau is not None:
+        if args.kernel != "heat":
+            raise _UserError("--tau is the heat kernel's diffusion time: use it with --kernel heat")
+        opts["tau"] = args.tau
+    steps = getattr(args, "steps", None)
+    if steps is not None:
+        if args.kernel not in ("connectivity", "gaussian"):
+            raise _UserError("--steps is the graph kernels' number of diffusion steps: use it with "
+                             "--kernel connectivity or gaussian")
+        opts["m"] = steps
+    return opts
 
 
 def _add_metric_args(p: argparse.ArgumentParser) -> None:
@@ -62,7 +72,7 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                    help="diffusion kernel: the resolution-independent Laplace-Beltrami heat kernel "
                         "(default), the paper's connectivity kernel, a Gaussian k-NN kernel, or the "
                         "biharmonic distance (heat-kernel distances integrated over all times)")
-    p.add_argument("--steps", type=_positive_int, default=50,
+    p.add_argument("--steps", type=_positive_int, default=None,
                    help="diffusion steps m of the graph kernels (default 50)")
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
@@ -292,11 +302,7 @@ def cmd_reproduce(args) -> int:
     if args.data is not None:
         data = data_root(args.data or None)   # "--data" alone: $GROMOV_DATA or ../shared/data
     command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
-    diffusion = {"kernel": args.kernel}
-    if args.tau is not None:
-        if args.kernel != "heat":
-            raise _UserError("--tau is the heat kernel's diffusion time: use it with --kernel heat")
-        diffusion["tau"] = args.tau
+    diffusion = _diffusion_options(args)
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
                   command=command.strip(), diffusion=diffusion)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)

@@ -572,11 +572,12 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
                                         f"../shared/data: tosca/cat0.off.gz, ...)")
     st = settings_for(dataset, quick, seed=seed)
     if diffusion:
-        from ..metrics import DIFFUSION_KERNELS
+        from ..shapes import icosphere
 
-        kernel = diffusion.get("kernel", "heat")
-        if kernel not in DIFFUSION_KERNELS:
-            raise ValueError(f"diffusion kernel must be one of {DIFFUSION_KERNELS}, got {kernel!r}")
+        try:  # the solver's own checks, on a tiny mesh, before any work
+            metric_solver(icosphere(1), "diffusion", **dict(diffusion))
+        except TypeError as exc:
+            raise ValueError(f"diffusion options {dict(diffusion)}: {exc}") from None
         st.metric_options["diffusion"] = dict(diffusion)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
