@@ -312,6 +312,8 @@ def cmd_reproduce(args) -> int:
 
     print(f"{r['dataset']}{' (quick)' if r['quick'] else ''}: {r['seconds_total']:.0f} s; "
           f"report {os.path.join(args.out, 'index.html')}")
+    opts = r["params"]["metric_options"]["diffusion"]
+    print("  diffusion metric: " + ", ".join(f"{k}={v}" for k, v in opts.items()))
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
