@@ -92,7 +92,8 @@ class ShapeMetric:
         """Largest finite distance between working vertices (computed once)."""
         if self._diameter is None:
             d = self.distances
-            self._diameter = float(d[np.isfinite(d)].max())
+            top = float(d.max())  # one pass; the masked maximum only when components are apart
+            self._diameter = top if np.isfinite(top) else float(np.max(d, where=np.isfinite(d), initial=0.0))
         return self._diameter
 
     @property
@@ -277,7 +278,7 @@ def _as_shape(s, metric, resolution, metric_options) -> ShapeMetric:
 
 
 def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", solver: str = "gmds",
-          init: str = "greedy", n_starts: int = 16, seed: int = 0, resolution: int | None = DEFAULT_RESOLUTION,
+          init: str = "greedy", n_starts: int = 128, keep: int = 8, seed: int = 0, resolution: int | None = DEFAULT_RESOLUTION,
           metric_options: dict | None = None, max_iter: int = 100, tol: float = 1e-6,
           radius: float | None = None) -> MatchResult:
     r"""Gromov-Hausdorff distance and correspondence between two shapes.
@@ -296,9 +297,20 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     init : {"greedy", "gw"}, default "greedy"
         GMDS initial guess: multi-start greedy placement refined coarse to fine, or the GW
         coupling's argmax.
-    n_starts : int, default 16
-        Candidate images of the first sample in the greedy initialisation (spread over Y by
-        farthest point order).
+    n_starts : int, default 128
+        Candidate images of the first sample in the greedy initialisation: the vertices of Y
+        whose distance-distribution signatures are closest to the sample's, at least 5% of
+        the diameter apart. From each, the first 12 samples are placed greedily.
+    keep : int, default 8
+        How many of those coarse starts (the lowest-distortion ones) are extended to all
+        samples and polished by discrete descent, per direction. The defaults were chosen on
+        TOSCA classes that the paper's experiments do not use (horse, centaur, wolf, michael;
+        ``benchmarks/bench_heldout.py`` shapes): against 16 and 4, mean d(C, C0) with the
+        heat-kernel diffusion metric went from 0.103 to 0.082 with welds, 0.176 to 0.078 with
+        10 holes and 0.199 to 0.159 with 20 holes (clean 0.030 to 0.029), and with the
+        geodesic metric from 0.033 to 0.023 clean and 0.088 to 0.078 with welds; the found
+        distortion was lower in 23 of 64 pairs, higher in 6. A match takes about 2.9 times as
+        long (cat, 100 samples: 0.09 s to 0.26 s on one core).
     seed : int, default 0
         Seeds the farthest point sampling; the rest is deterministic.
     resolution : int or None, default 3000
@@ -340,8 +352,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         cand_x = _candidates(sy.descriptors[Q[0]], sx, n_starts)
         # each direction on its own, then the other direction anchored on it; keep the
         # consistent pair with the lower two-sided distortion
-        fwd = greedy_init(dx_pp, DY, cand_y)
-        bwd = greedy_init(dy_qq, DX, cand_x)
+        fwd = greedy_init(dx_pp, DY, cand_y, keep=keep)
+        bwd = greedy_init(dy_qq, DX, cand_x, keep=keep)
         pairs = [(fwd, anchored_images(DX, P, DY[np.ix_(Q, fwd)])),
                  (anchored_images(DY, Q, DX[np.ix_(P, bwd)]), bwd)]
         scores = [gm.distortion(SurfacePoints.at_vertices(sy.mesh, a), SurfacePoints.at_vertices(sx.mesh, b), 2.0)

@@ -116,13 +116,14 @@ class SurfaceDistance:
         d = np.asarray(distances, dtype=np.float64)
         if d.shape != (mesh.n_vertices, mesh.n_vertices):
             raise ValueError(f"distances must be ({mesh.n_vertices}, {mesh.n_vertices}), got {d.shape}")
-        if not np.isfinite(d).all():
+        top = float(d.max())  # inf or NaN anywhere makes the maximum non-finite
+        if not np.isfinite(top):
             raise MetricError("GMDS needs finite distances: the mesh has several connected "
                               "components (use Mesh.largest_component())")
         self.mesh = mesh
         self.distances = d
         self.sq = np.ascontiguousarray(d * d)
-        self.max_distance = float(d.max())
+        self.max_distance = top
         self.faces = np.ascontiguousarray(mesh.faces)
         self.neighbours = face_neighbours(mesh.faces)
 
