@@ -192,6 +192,21 @@ def test_descent_with_blas_passes_matches_the_compiled_one():
         np.testing.assert_array_equal(a[0], b[0])
 
 
+def test_parallel_coarse_starts_equal_one_start_after_the_other():
+    from gromov import _gmds_kernel as K
+
+    DX, DY = _random_metric(40, 5), _random_metric(250, 6)
+    dx = np.ascontiguousarray(DX[:12, :12])
+    cand = np.array([3, 0, 249, 77, 77, 120, 5, 31, 200, 64, 18], np.int64)
+    imgs, costs = K.coarse_starts(dx, DY, cand, 20)
+    R, C = np.empty((12, 250)), np.empty((12, 250))
+    for q, start in enumerate(cand):
+        img, f = K.place_and_descend(dx, DY, np.array([start], np.int64), 20, R, C)
+        np.testing.assert_array_equal(imgs[q], img)
+        assert costs[q] == f
+    assert len(set(map(tuple, imgs.tolist()))) > 1  # the starts differ
+
+
 def test_argmin_is_numpys():
     from gromov._gmds_kernel import _argmin
 

@@ -24,7 +24,7 @@ the points never increases the total distortion (block coordinate descent).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import get_num_threads, njit, prange
 
 __all__ = ["face_neighbours", "sweep", "pair_distances"]
 
@@ -546,23 +546,34 @@ def place_and_descend(dx, DY, start, max_sweeps, R, C, block=16, cap=32, ratio=2
     return img, _sq_dist_sum(dx, DY, img)
 
 
-@njit(cache=True)
 def coarse_starts(dx, DY, candidates, max_sweeps):
     """:func:`place_and_descend` from each candidate image of the first sample:
-    images ``(s, m)`` and their summed squared distortions ``(s,)``."""
+    images ``(s, m)`` and their summed squared distortions ``(s,)``.
+
+    The candidates are independent: they run in parallel on numba's threads (each chunk
+    with its own work arrays), with the same results as one after the other.
+    """
+    candidates = np.asarray(candidates, dtype=np.int64)
+    nchunks = max(1, min(len(candidates), 4 * get_num_threads()))
+    return _coarse_starts(dx, DY, candidates, max_sweeps, nchunks)
+
+
+@njit(cache=True, parallel=True)
+def _coarse_starts(dx, DY, candidates, max_sweeps, nchunks):
     s = candidates.shape[0]
     m = dx.shape[0]
     n = DY.shape[0]
-    R = np.empty((m, n))
-    C = np.empty((m, n))
     imgs = np.empty((s, m), np.int64)
     costs = np.empty(s)
-    start = np.empty(1, np.int64)
-    for q in range(s):
-        start[0] = candidates[q]
-        img, f = place_and_descend(dx, DY, start, max_sweeps, R, C, 16, 32, 2.0)
-        imgs[q] = img
-        costs[q] = f
+    for ch in prange(nchunks):
+        R = np.empty((m, n))
+        C = np.empty((m, n))
+        start = np.empty(1, np.int64)
+        for q in range(ch, s, nchunks):
+            start[0] = candidates[q]
+            img, f = place_and_descend(dx, DY, start, max_sweeps, R, C, 16, 32, 2.0)
+            imgs[q] = img
+            costs[q] = f
     return imgs, costs
 
 
