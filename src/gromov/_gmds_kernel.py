@@ -550,31 +550,43 @@ def coarse_starts(dx, DY, candidates, max_sweeps):
     """:func:`place_and_descend` from each candidate image of the first sample:
     images ``(s, m)`` and their summed squared distortions ``(s,)``.
 
-    The candidates are independent: they run in parallel on numba's threads (each chunk
-    with its own work arrays), with the same results as one after the other.
+    The candidates are independent: with more than one numba thread they run in parallel
+    (each chunk with its own work arrays), with the same results as one after the other.
+    With one thread (as in the forked workers of :mod:`gromov.experiments.pairwise`, where
+    numba's thread pool must not be started: its workqueue layer does not survive a fork
+    after the parent used it) no parallel kernel is entered.
     """
     candidates = np.asarray(candidates, dtype=np.int64)
-    nchunks = max(1, min(len(candidates), 4 * get_num_threads()))
-    return _coarse_starts(dx, DY, candidates, max_sweeps, nchunks)
+    s = len(candidates)
+    imgs = np.empty((s, dx.shape[0]), np.int64)
+    costs = np.empty(s)
+    nchunks = min(s, 4 * get_num_threads())
+    if nchunks > 1 and get_num_threads() > 1:
+        _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks)
+    else:
+        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1)
+    return imgs, costs
+
+
+@njit(cache=True)
+def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step):
+    """Candidates ``first, first + step, ...`` of :func:`coarse_starts`, into ``imgs, costs``."""
+    m = dx.shape[0]
+    n = DY.shape[0]
+    R = np.empty((m, n))
+    C = np.empty((m, n))
+    start = np.empty(1, np.int64)
+    for q in range(first, candidates.shape[0], step):
+        start[0] = candidates[q]
+        img, f = place_and_descend(dx, DY, start, max_sweeps, R, C, 16, 32, 2.0)
+        imgs[q] = img
+        costs[q] = f
 
 
 @njit(cache=True, parallel=True)
-def _coarse_starts(dx, DY, candidates, max_sweeps, nchunks):
-    s = candidates.shape[0]
-    m = dx.shape[0]
-    n = DY.shape[0]
-    imgs = np.empty((s, m), np.int64)
-    costs = np.empty(s)
+def _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks):
     for ch in prange(nchunks):
-        R = np.empty((m, n))
-        C = np.empty((m, n))
-        start = np.empty(1, np.int64)
-        for q in range(ch, s, nchunks):
-            start[0] = candidates[q]
-            img, f = place_and_descend(dx, DY, start, max_sweeps, R, C, 16, 32, 2.0)
-            imgs[q] = img
-            costs[q] = f
-    return imgs, costs
+        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, ch, nchunks)
 
 
 def place_and_descend_blas(dx, DY, start, max_sweeps, R, C, *, block=16, cap=32, ratio=2.0):
