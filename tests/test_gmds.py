@@ -93,6 +93,21 @@ def test_errors():
         match(x, x, "geodesic", n_samples=10, solver="icp", resolution=None)
     with pytest.raises(ValueError, match="prepared for"):
         match(ShapeMetric(x, "geodesic", resolution=None), x, "diffusion", n_samples=10)
+    for bad in ({"n_starts": 0}, {"keep": 0}, {"keep": 2.5}, {"n_starts": True}):
+        with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive integer"):
+            match(x, x, "geodesic", n_samples=10, resolution=None, **bad)
+
+
+def test_wider_search_candidates_extend_the_narrower_ones():
+    """The first-sample candidates of a wider search start with those of a narrower one
+    (one ordered list, cut later): widening only adds coarse starts."""
+    from gromov.gh import _candidates
+
+    x = ShapeMetric(bumpy_torus(), "geodesic", resolution=None)
+    sig = x.descriptors[x.samples(20, 0)[0]]
+    few, many = _candidates(sig, x, 8), _candidates(sig, x, 32)
+    assert len(few) == 8 and len(many) == 32
+    np.testing.assert_array_equal(many[:8], few)
 
 
 @pytest.fixture(scope="module")

@@ -331,6 +331,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"solver must be 'gmds' or 'gw', got {solver!r}")
     if init not in ("greedy", "gw"):
         raise ValueError(f"init must be 'greedy' or 'gw', got {init!r}")
+    for name, value in (("n_starts", n_starts), ("keep", keep)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
     sx = _as_shape(X, metric, resolution, metric_options)
     sy = _as_shape(Y, metric, resolution, metric_options)
     for name, s in (("X", sx), ("Y", sy)):
