@@ -552,9 +552,9 @@ def coarse_starts(dx, DY, candidates, max_sweeps):
 
     The candidates are independent: with more than one numba thread they run in parallel
     (each chunk with its own work arrays), with the same results as one after the other.
-    With one thread (as in the forked workers of :mod:`gromov.experiments.pairwise`, where
-    numba's thread pool must not be started: its workqueue layer does not survive a fork
-    after the parent used it) no parallel kernel is entered.
+    With one thread no parallel kernel is entered: the forked workers of
+    :mod:`gromov.experiments.pairwise` run with one thread, and numba's threading layer (GNU
+    OpenMP here) aborts a forked child that enters it once the parent has used it.
     """
     candidates = np.asarray(candidates, dtype=np.int64)
     s = len(candidates)
