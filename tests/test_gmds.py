@@ -93,9 +93,26 @@ def test_errors():
         match(x, x, "geodesic", n_samples=10, solver="icp", resolution=None)
     with pytest.raises(ValueError, match="prepared for"):
         match(ShapeMetric(x, "geodesic", resolution=None), x, "diffusion", n_samples=10)
-    for bad in ({"n_starts": 0}, {"keep": 0}, {"keep": 2.5}, {"n_starts": True}):
+    for bad in ({"n_starts": 0}, {"n_extend": 0}, {"n_extend": 2.5}, {"n_starts": True}):
         with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive integer"):
             match(x, x, "geodesic", n_samples=10, resolution=None, **bad)
+    r = match(x, x, "geodesic", n_samples=10, resolution=None, n_starts=np.int64(4), n_extend=np.uint8(2))
+    assert r.relative_distance < 1e-9  # numpy integers are integers
+
+
+def test_surface_distance_refuses_what_gmds_cannot_use():
+    from gromov.errors import MetricError
+    from gromov.gmds import SurfaceDistance
+
+    m = grid(5, 4)
+    d = np.asarray(gromov.metric_solver(m, "euclidean").pairwise(), dtype=float).copy()
+    assert SurfaceDistance(m, d).max_distance == d.max()
+    for bad, msg in ((np.inf, "finite distances"), (np.nan, "finite distances"),
+                     (-np.inf, "non-negative"), (-1.0, "non-negative")):
+        e = d.copy()
+        e[0, 1] = e[1, 0] = bad
+        with pytest.raises(MetricError, match=msg):
+            SurfaceDistance(m, e)
 
 
 def test_wider_search_candidates_extend_the_narrower_ones():
@@ -214,6 +231,11 @@ def test_parallel_coarse_starts_equal_one_start_after_the_other():
     dx = np.ascontiguousarray(DX[:12, :12])
     cand = np.array([3, 0, 249, 77, 77, 120, 5, 31, 200, 64, 18], np.int64)
     imgs, costs = K.coarse_starts(dx, DY, cand, 20)
+    # the parallel kernel itself (coarse_starts takes it only with more than one thread)
+    pimgs, pcosts = np.empty_like(imgs), np.empty_like(costs)
+    K._coarse_parallel(dx, DY, cand, 20, pimgs, pcosts, 3)
+    np.testing.assert_array_equal(pimgs, imgs)
+    np.testing.assert_array_equal(pcosts, costs)
     R, C = np.empty((12, 250)), np.empty((12, 250))
     for q, start in enumerate(cand):
         img, f = K.place_and_descend(dx, DY, np.array([start], np.int64), 20, R, C)

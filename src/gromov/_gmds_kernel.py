@@ -24,7 +24,7 @@ the points never increases the total distortion (block coordinate descent).
 from __future__ import annotations
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+from numba import get_num_threads, njit, parallel_chunksize, prange
 
 __all__ = ["face_neighbours", "sweep", "pair_distances"]
 
@@ -562,7 +562,8 @@ def coarse_starts(dx, DY, candidates, max_sweeps):
     costs = np.empty(s)
     nchunks = min(s, 4 * get_num_threads())
     if nchunks > 1 and get_num_threads() > 1:
-        _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks)
+        with parallel_chunksize(1):  # chunks handed out one by one: their costs differ
+            _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks)
     else:
         _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1)
     return imgs, costs

@@ -118,8 +118,11 @@ class SurfaceDistance:
             raise ValueError(f"distances must be ({mesh.n_vertices}, {mesh.n_vertices}), got {d.shape}")
         top = float(d.max())  # inf or NaN anywhere makes the maximum non-finite
         if not np.isfinite(top):
-            raise MetricError("GMDS needs finite distances: the mesh has several connected "
-                              "components (use Mesh.largest_component())")
+            raise MetricError("GMDS needs finite distances, got inf or NaN (a mesh with several "
+                              "connected components has inf between them: use "
+                              "Mesh.largest_component())")
+        if float(d.min()) < 0.0:
+            raise MetricError(f"distances must be non-negative, got {float(d.min())!r}")
         self.mesh = mesh
         self.distances = d
         self.sq = np.ascontiguousarray(d * d)
