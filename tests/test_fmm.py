@@ -356,3 +356,23 @@ def test_bad_sources_message_names_the_input():
         fm.distance([3, 451])
     with pytest.raises(ValueError, match="float"):
         fm.distances([0.5])
+
+
+def _rows_in_a_forked_worker(solver, sources):
+    return solver.distances(sources)
+
+
+def test_forked_single_thread_workers_take_the_serial_kernel(sphere3_solver):
+    """After the parent used numba's threads, a forked child must not enter them (the
+    OpenMP layer aborts it); with one thread, as the pair workers run, the rows still come."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    from gromov.experiments.pairwise import _one_thread_per_worker
+
+    src = np.arange(12)
+    parent = sphere3_solver.distances(src)  # the parallel kernel, in this process
+    with ProcessPoolExecutor(1, mp_context=mp.get_context("fork"),
+                             initializer=_one_thread_per_worker) as ex:
+        child = ex.submit(_rows_in_a_forked_worker, sphere3_solver, src).result(timeout=120)
+    np.testing.assert_array_equal(child, parent)

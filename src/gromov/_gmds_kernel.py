@@ -560,10 +560,10 @@ def coarse_starts(dx, DY, candidates, max_sweeps):
     s = len(candidates)
     imgs = np.empty((s, dx.shape[0]), np.int64)
     costs = np.empty(s)
-    nchunks = min(s, 4 * get_num_threads())
-    if nchunks > 1 and get_num_threads() > 1:
+    threads = get_num_threads()
+    if threads > 1 and s > 1:
         with parallel_chunksize(1):  # chunks handed out one by one: their costs differ
-            _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks)
+            _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, min(s, 4 * threads))
     else:
         _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1)
     return imgs, costs

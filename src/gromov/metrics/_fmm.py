@@ -1496,7 +1496,9 @@ class FastMarching:
         """
         s = self._check_sources(sources)
         out = np.empty((len(s), self.n_vertices))
-        if parallel and len(s) > 1:
+        # one numba thread (as in forked worker processes, where entering the threading layer
+        # after the parent used it aborts the child) takes the serial kernel: same rows
+        if parallel and len(s) > 1 and get_num_threads() > 1:
             # many small chunks, handed out dynamically: robust to busy cores
             nchunks = min(len(s), 32 * get_num_threads())
             with parallel_chunksize(1):
