@@ -9,7 +9,8 @@ the held-out TOSCA classes (horse, centaur, wolf, michael: none is in the paper'
 experiments, so choices made from these numbers are not tuned on the test classes), with the
 shapes built exactly as ``gromov reproduce`` builds them: per class the reference pose 0 and
 two deformations at 3,000 vertices, every pose simplified identically, each deformation
-clean, with 3 welds, with 10 and with 20 holes.
+clean, with 3 welds (merged vertices by default, ``--weld-join tube`` for handles), with 10
+and with 20 holes.
 
 1. **Ground-truth distortion** (no optimiser involved): 100 farthest-point samples of the
    reference, their ground-truth images on the deformed shape (same input vertex; samples
@@ -78,10 +79,12 @@ def main(argv=None):
     ap.add_argument("--classes", default="horse,centaur,wolf,michael")
     ap.add_argument("--metrics", default=",".join(METRICS))
     ap.add_argument("--samples", type=int, default=100)
+    ap.add_argument("--weld-join", choices=("pinch", "tube"), default="pinch",
+                    help="welds merge two vertices (pinch, as gromov reproduce) or add a handle (tube)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     tosca = TOSCA(Path(args.data) / "tosca")
-    shapes = _Shapes(tosca, 3000)
+    shapes = _Shapes(tosca, 3000, args.weld_join)
     names = args.metrics.split(",")
     rows = []
     t_start = time.perf_counter()

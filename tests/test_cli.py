@@ -176,3 +176,5 @@ def test_perturb_writes_mesh_and_ground_truth(tmp_path, capsys):
     r = subprocess.run([sys.executable, "-m", "gromov", "perturb", "weld", str(src), str(out),
                         "--count", "2"], capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr and "weld site" in r.stderr
+    assert main(["perturb", "holes", str(src), str(out), "--count", "2", "--join", "pinch"]) == 2
+    assert "--join applies to weld" in capsys.readouterr().err

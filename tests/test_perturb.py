@@ -6,6 +6,8 @@ a pinch weld lowers chi by one; a weld turns a long way around the surface into 
 hop across the gap; output vertices are input vertices (coordinates and file ids).
 """
 
+import json
+
 import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
@@ -247,3 +249,23 @@ def test_weld_and_holes_specific_errors():
         weld(sheet, 1, min_geodesic_ratio=0.5)
     with pytest.raises(ValueError, match=r"only \d+ hole\(s\) of radius 0.5 fit for count=30"):
         holes(icosphere(3), 30, radius=0.5)
+
+
+def test_cli_weld_join(tmp_path, capsys):
+    """`gromov perturb weld --join`: a handle per weld (default, chi - 2) or a pinch (chi - 1)."""
+    import gromov
+    from gromov.cli import main
+
+    sheet = hairpin()
+    src = tmp_path / "hairpin.off"
+    gromov.save(sheet, src)
+    chi = sheet.euler_characteristic
+    for join, drop in ((None, 2), ("tube", 2), ("pinch", 1)):
+        out = tmp_path / f"welded-{join}.off"
+        args = ["perturb", "weld", str(src), str(out), "--count", "2", "--seed", "1"]
+        assert main(args + ([] if join is None else ["--join", join])) == 0, capsys.readouterr().err
+        assert f"Euler characteristic {chi} -> {chi - 2 * drop}" in capsys.readouterr().out
+        assert gromov.load(out).euler_characteristic == chi - 2 * drop
+        z = np.load(tmp_path / f"welded-{join}.map.npz")
+        params = json.loads(str(z["params"]))
+        assert params["join"] == (join or "tube") and len(params["gaps"]) == 2

@@ -39,6 +39,9 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
     shapes = r["recognition"]["weld"]["shapes"]
     welded = [s for label, s in shapes.items() if "+weld" in label]
     assert welded and all(s["euler_after"] < s["euler_before"] for s in welded)
+    # the paper's welded vertices by default: one merged vertex per weld lowers chi by one
+    assert r["params"]["weld_join"] == "pinch"
+    assert all(s["join"] == "pinch" and s["euler_before"] - s["euler_after"] == s["welds"] for s in welded)
     holed = [s for label, s in r["recognition"]["holes"]["shapes"].items() if "+holes" in label]
     assert holed and all(s["boundary_loops_after"] >= 1 for s in holed)
     for key in ("timings", "versions", "seeds", "params"):
@@ -102,3 +105,28 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     with pytest.raises(ValueError, match="diffusion options"):
         reproduce(None, tmp_path / "o", quick=True, diffusion={"kernel": "biharmonic", "m": 50})
     assert not (tmp_path / "o").exists()  # refused before any work
+
+
+def test_weld_join_option(tmp_path, capsys):
+    """Welds merge vertices (pinch, chi - 1) or add handles (tube, chi - 2); the same sites."""
+    from gromov.experiments.datasets import experiment1
+    from gromov.experiments.reproduce import _Shapes, reproduce
+    from gromov.experiments.synthetic import Synthetic
+
+    syn = Synthetic(n_vertices=800)
+    entry = next(e for e in experiment1(syn, {"cat": 1}) if e.perturbation is not None)
+    shapes = {j: _Shapes(syn, None, j).entry(entry) for j in ("pinch", "tube")}
+    pinch, tube = shapes["pinch"].info, shapes["tube"].info
+    assert pinch["welds"] == tube["welds"] >= 1 and pinch["euler_before"] == tube["euler_before"]
+    assert pinch["euler_before"] - pinch["euler_after"] == pinch["welds"]
+    assert tube["euler_before"] - tube["euler_after"] == 2 * tube["welds"]
+    # a pinch merges one vertex of each site into the other; a tube removes both 1-rings' centres
+    clean = _Shapes(syn, None).work(entry.cls, entry.pose).mesh
+    assert shapes["pinch"].mesh.n_vertices == clean.n_vertices - pinch["welds"]
+    assert shapes["tube"].mesh.n_vertices == clean.n_vertices - 2 * tube["welds"]
+    with pytest.raises(ValueError, match="weld_join must be one of"):
+        reproduce(None, tmp_path / "o", quick=True, weld_join="glue")
+    assert not (tmp_path / "o").exists()  # refused before any work
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--quick", "--weld-join", "glue", "--out", str(tmp_path / "o")])
+    assert "invalid choice: 'glue'" in capsys.readouterr().err

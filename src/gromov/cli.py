@@ -220,6 +220,11 @@ def cmd_match(args) -> int:
     return 0
 
 
+def _json_value(o):
+    """numpy scalars and arrays (e.g. a weld's gaps) as JSON numbers and lists."""
+    return o.tolist() if hasattr(o, "tolist") else float(o)
+
+
 def cmd_perturb(args) -> int:
     from .io import save
     from .mesh import Mesh
@@ -229,7 +234,10 @@ def cmd_perturb(args) -> int:
     if not isinstance(shape, Mesh):
         raise _UserError(f"{args.input}: perturbations need a triangle mesh, got a point cloud")
     fn = weld if args.kind == "weld" else holes
-    p = fn(shape, args.count, radius=args.radius, seed=args.seed)
+    if args.join is not None and args.kind != "weld":
+        raise _UserError("--join applies to weld, not to holes")
+    extra = {} if args.join is None else {"join": args.join}
+    p = fn(shape, args.count, radius=args.radius, seed=args.seed, **extra)
     out = Path(args.output)
     if out.parent and not out.parent.exists():
         raise _UserError(f"output folder {out.parent} does not exist")
@@ -243,7 +251,7 @@ def cmd_perturb(args) -> int:
     np.savez_compressed(sidecar, vertex_map=shape.input_ids[p.vertex_map].astype(np.int64),
                         sites=shape.input_ids[p.sites].astype(np.int64), kind=p.kind,
                         euler_before=p.euler_before, euler_after=p.euler_after,
-                        params=json.dumps(p.params, default=float))
+                        params=json.dumps(p.params, default=_json_value))
     print(f"{args.input} -> {out}: {args.kind} x{args.count}, Euler characteristic "
           f"{p.euler_before} -> {p.euler_after}, boundary loops {p.boundary_loops_before} -> "
           f"{p.boundary_loops_after}; ground-truth vertex map in {sidecar}")
@@ -304,7 +312,7 @@ def cmd_reproduce(args) -> int:
     command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
     diffusion = _diffusion_options(args)
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
-                  command=command.strip(), diffusion=diffusion)
+                  command=command.strip(), diffusion=diffusion, weld_join=args.weld_join)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -313,7 +321,8 @@ def cmd_reproduce(args) -> int:
     print(f"{r['dataset']}{' (quick)' if r['quick'] else ''}: {r['seconds_total']:.0f} s; "
           f"report {os.path.join(args.out, 'index.html')}")
     opts = r["params"]["metric_options"]["diffusion"]
-    print("  diffusion metric: " + ", ".join(f"{k}={v}" for k, v in opts.items()))
+    print("  diffusion metric: " + ", ".join(f"{k}={v}" for k, v in opts.items())
+          + f"; welds: {r['params']['weld_join']}")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
@@ -374,6 +383,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--radius", type=float, default=None,
                    help="weld: search radius for close pairs; holes: geodesic radius (defaults in the docs)")
     q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--join", choices=("tube", "pinch"), default=None,
+                   help="weld: join the two places by a short handle (tube, default) or merge "
+                        "their vertices (pinch)")
     q.set_defaults(func=cmd_perturb)
 
     q = sub.add_parser("reproduce", help="the paper's experiments, results.json and an HTML report")
@@ -391,6 +403,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
     q.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
+    q.add_argument("--weld-join", choices=("pinch", "tube"), default="pinch",
+                   help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
+                        "default) or join their 1-rings by a short handle (tube)")
     q.set_defaults(func=cmd_reproduce)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")

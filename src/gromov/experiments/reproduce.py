@@ -170,8 +170,11 @@ def reflection_map(mesh: Mesh) -> np.ndarray:
     return out
 
 
-def _weld(work: Mesh, count: int, seed: int):
+def _weld(work: Mesh, count: int, seed: int, join: str = "pinch"):
     """Weld ``count`` places, relaxing the search when a pose has too few close parts.
+
+    ``join``: how the two places are glued (:func:`gromov.perturb.weld`): ``"pinch"`` merges
+    the two vertices (the paper's welded vertices), ``"tube"`` joins their 1-rings by a handle.
 
     The default search radius is 5 mean edge lengths and a weld needs the geodesic distance
     to be 4 times the Euclidean one; a pose whose parts do not come that close gets a
@@ -184,11 +187,13 @@ def _weld(work: Mesh, count: int, seed: int):
             radius = 5 * edge
             for _ in range(5):
                 try:
-                    p = _perturb.weld(work, k, radius=radius, seed=seed, min_geodesic_ratio=ratio)
+                    p = _perturb.weld(work, k, radius=radius, seed=seed, min_geodesic_ratio=ratio,
+                                     join=join)
                 except ValueError:
                     radius *= 1.5
                     continue
-                return p, {"welds": k, "radius_edges": round(radius / edge, 2), "min_geodesic_ratio": ratio}
+                return p, {"welds": k, "join": join, "radius_edges": round(radius / edge, 2),
+                          "min_geodesic_ratio": ratio}
     raise GromovError(f"no place to weld on a mesh of {work.n_vertices} vertices")
 
 
@@ -211,11 +216,17 @@ def _collection(dataset: str, data: Path | None):
 
 
 class _Shapes:
-    """Working meshes per (class, pose), made once; perturbed shapes per entry."""
+    """Working meshes per (class, pose), made once; perturbed shapes per entry.
 
-    def __init__(self, collection, resolution):
+    ``weld_join``: how welds glue (:data:`WELD_JOIN`, :func:`gromov.perturb.weld`).
+    """
+
+    def __init__(self, collection, resolution, weld_join: str = "pinch"):
+        if weld_join not in _perturb.WELD_JOINS:
+            raise ValueError(f"weld_join must be one of {_perturb.WELD_JOINS}, got {weld_join!r}")
         self.collection = collection
         self.resolution = resolution
+        self.weld_join = weld_join
         self.working: dict[tuple[str, int], WorkingMesh] = {}
         self.mirror: dict[str, np.ndarray] = {}
         self.shapes: dict[str, _Shape] = {}
@@ -243,7 +254,7 @@ class _Shapes:
         else:
             kind, count = e.perturbation
             if kind == "weld":
-                p, info = _weld(clean, count, e.seed)
+                p, info = _weld(clean, count, e.seed, self.weld_join)
             else:
                 p = _perturb.holes(clean, count, seed=e.seed)
                 info = {"holes": count}
@@ -524,7 +535,7 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
 # ----------------------------------------------------------------------------- main
 def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: int | None = None,
               seed: int = 0, quiet: bool = False, command: str | None = None,
-              diffusion: dict | None = None) -> dict:
+              diffusion: dict | None = None, weld_join: str = "pinch") -> dict:
     """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
 
     Parameters
@@ -550,6 +561,12 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         ``{"kernel": "connectivity", "m": 50}`` for the paper's graph diffusion or
         ``{"kernel": "biharmonic"}``; default: the heat kernel at tau = 0.005. Recorded in
         ``params``.
+    weld_join : {"pinch", "tube"}, default "pinch"
+        How Experiment 1 welds (:func:`gromov.perturb.weld`): ``"pinch"`` merges two vertices
+        where parts nearly touch -- the paper's *welded vertices*, a point-wise topology change
+        (IJCV 2010, §5); ``"tube"`` removes both 1-rings and joins them by a short handle of
+        finite width (harder: like the self-contacts of SHREC'16 TOPKIDS). Recorded in
+        ``params``.
 
     Returns
     -------
@@ -571,6 +588,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
             raise datasets.DatasetError(f"{data}: no tosca/ directory (expected the layout of "
                                         f"../shared/data: tosca/cat0.off.gz, ...)")
     st = settings_for(dataset, quick, seed=seed)
+    if weld_join not in _perturb.WELD_JOINS:
+        raise ValueError(f"weld_join must be one of {_perturb.WELD_JOINS}, got {weld_join!r}")
     if diffusion:
         from ..shapes import icosphere
 
@@ -582,7 +601,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     collection = _collection(dataset, data)
-    shapes = _Shapes(collection, st.resolution)
+    shapes = _Shapes(collection, st.resolution, weld_join)
     timings: dict = {}
     _say(f"gromov reproduce: {dataset}{' (quick)' if quick else ''}, {jobs} job(s), output in {out}", quiet)
 
@@ -623,7 +642,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         "correspondence": correspondence,
         "topkids": topkids,
         "timings": timings,
-        "params": {**st.to_dict(), "weld_count": datasets.WELD_COUNT, "hole_counts": list(datasets.HOLE_COUNTS),
+        "params": {**st.to_dict(), "weld_count": datasets.WELD_COUNT, "weld_join": weld_join,
+                   "hole_counts": list(datasets.HOLE_COUNTS),
                    "correspondence_error": "geodesic on the clean working meshes / clean geodesic diameter; "
                                            "best of direct and mirrored ground truth"},
         "seeds": {"sampling": seed, "perturbations": {s.label: s.info.get("seed") for s in shapes.shapes.values()
