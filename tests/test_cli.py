@@ -178,3 +178,15 @@ def test_perturb_writes_mesh_and_ground_truth(tmp_path, capsys):
     assert r.returncode == 2 and "Traceback" not in r.stderr and "weld site" in r.stderr
     assert main(["perturb", "holes", str(src), str(out), "--count", "2", "--join", "pinch"]) == 2
     assert "--join applies to weld" in capsys.readouterr().err
+
+
+def test_fill_holes_option(tmp_path, capsys):
+    src = tmp_path / "sphere.off"
+    gromov.save(icosphere(2), src)
+    out = tmp_path / "d.npz"
+    assert main(["distances", str(src), "--metric", "geodesic", "--fill-holes", "0.5", "--out", str(out)]) == 2
+    assert "--fill-holes applies to --metric diffusion" in capsys.readouterr().err
+    assert main(["distances", str(src), "--fill-holes", "-1", "--out", str(out)]) == 2
+    assert "--fill-holes must be >= 0" in capsys.readouterr().err
+    assert main(["distances", str(src), "--fill-holes", "0", "--samples", "5", "--out", str(out)]) == 0
+    assert np.load(out)["distances"].shape == (5, 5)

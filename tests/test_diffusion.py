@@ -135,3 +135,37 @@ def test_tosca_cat_spectral_matches_dense(cat_working):
     ref = exact.from_sources(idx)
     assert np.abs(d**2 - ref**2).max() <= fast.truncation_bound + 1e-12
     assert np.abs(d - ref).max() < 1e-3 * ref.max()
+
+
+def test_diffusion_fills_small_holes_by_default():
+    """Holes are insulating for heat; on the filled surface the distances come back.
+
+    A sphere with 8 small holes: by default (``fill_holes=0.5``) the heat-kernel distances
+    between the remaining vertices are close to those of the whole sphere; with the holes
+    left open they are several times farther off.
+    """
+    from gromov.metrics import DIFFUSION_FILL_HOLES, RestrictedSolver, metric_solver
+    from gromov.perturb import holes
+
+    sphere = icosphere(4)
+    p = holes(sphere, 8, radius=0.2, seed=1)
+    full = metric_solver(sphere, "diffusion").pairwise()[np.ix_(p.vertex_map, p.vertex_map)]
+    filled = metric_solver(p.mesh, "diffusion")
+    assert isinstance(filled, RestrictedSolver) and DIFFUSION_FILL_HOLES == 0.5
+    assert filled.n_vertices == p.mesh.n_vertices and filled.inner.n_vertices == p.mesh.n_vertices + 8
+    open_ = metric_solver(p.mesh, "diffusion", fill_holes=None)
+    assert not isinstance(open_, RestrictedSolver)
+    err_filled = np.abs(filled.pairwise() - full).max() / full.max()
+    err_open = np.abs(open_.pairwise() - full).max() / full.max()
+    assert err_filled < 0.05 and err_filled < 0.5 * err_open, (err_filled, err_open)
+    # rows agree with the matrix; the metric axioms hold on the original vertices
+    D = filled.pairwise()
+    np.testing.assert_allclose(filled.from_sources([0, 7]), D[[0, 7]], rtol=1e-6, atol=1e-12)
+    assert np.allclose(D, D.T) and np.all(np.diag(D) == 0) and not D.flags.writeable
+    # closed meshes and the other metrics are untouched by default
+    assert not isinstance(metric_solver(sphere, "diffusion"), RestrictedSolver)
+    assert not isinstance(metric_solver(p.mesh, "geodesic"), RestrictedSolver)
+    assert isinstance(metric_solver(p.mesh, "geodesic", fill_holes=0.5), RestrictedSolver)
+    for bad in (0, -1.0, True, "big", float("inf")):
+        with pytest.raises(ValueError, match="fill_holes must be a positive number or None"):
+            metric_solver(p.mesh, "diffusion", fill_holes=bad)

@@ -151,3 +151,35 @@ def test_topkids_have_handles(data_dir):
     kid = gromov.load(data_dir / "topkids" / "kid05.off.gz")
     assert kid.euler_characteristic < 2
     assert kid.genus >= 1
+
+
+def test_fill_holes_closes_small_loops_and_keeps_the_vertices():
+    from gromov.mesh import fill_holes
+    from gromov.perturb import holes
+
+    sphere = icosphere(4)
+    holed = holes(sphere, 5, radius=0.15, seed=0).mesh
+    assert len(holed.boundary_loops) == 5 and holed.euler_characteristic == 2 - 5
+    closed, k = fill_holes(holed, 10.0)
+    # one centroid per loop; a closed, oriented sphere again (chi = 2, every directed edge once)
+    assert k == 5 and closed.n_vertices == holed.n_vertices + 5
+    assert closed.euler_characteristic == 2 and len(closed.boundary_loops) == 0
+    f = closed.faces
+    directed = np.r_[f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]
+    assert len(np.unique(directed, axis=0)) == len(directed)
+    np.testing.assert_array_equal(closed.vertices[: holed.n_vertices], holed.vertices)
+    np.testing.assert_array_equal(closed.input_ids[: holed.n_vertices], holed.input_ids)
+    assert closed.input_ids[holed.n_vertices:].min() > holed.input_ids.max()   # not in the file
+    # the fan's area is close to the removed disks' (a cap of radius 0.15 on the unit sphere)
+    assert abs(closed.area - sphere.area) < 0.02 * sphere.area
+    # loops at least max_perimeter long stay open; nothing to fill -> the same mesh
+    per = [np.linalg.norm(holed.vertices[np.roll(l, -1)] - holed.vertices[l], axis=1).sum()
+           for l in holed.boundary_loops]
+    part, k = fill_holes(holed, float(np.median(per)))
+    assert k == sum(p < np.median(per) for p in per) and len(part.boundary_loops) == 5 - k
+    assert fill_holes(sphere, 1.0) == (sphere, 0)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="max_perimeter must be a positive number"):
+            fill_holes(holed, bad)
+    with pytest.raises(TypeError, match="fill_holes needs a Mesh"):
+        fill_holes(PointCloud(np.zeros((3, 3))), 1.0)

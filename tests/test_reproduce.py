@@ -92,7 +92,7 @@ def test_settings_and_user_errors(tmp_path, capsys):
 def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     code, out = quick_run
     r = json.loads((out / "results.json").read_text())
-    assert r["params"]["metric_options"]["diffusion"] == {"kernel": "heat"}  # the CLI's default
+    assert r["params"]["metric_options"]["diffusion"] == {"kernel": "heat", "fill_holes": 0.5}  # defaults
     assert main(["reproduce", "--quick", "--kernel", "biharmonic", "--tau", "0.01",
                  "--out", str(tmp_path / "o")]) == 2
     assert "--tau is the heat kernel's diffusion time" in capsys.readouterr().err

@@ -40,6 +40,8 @@ def _positive_int(text: str) -> int:
 
 
 def _metric_options(args) -> dict:
+    if args.metric != "diffusion" and getattr(args, "fill_holes", None) is not None:
+        raise _UserError("--fill-holes applies to --metric diffusion")
     if args.metric == "geodesic":
         return {"method": args.geodesic_method} if args.geodesic_method else {}
     if args.metric == "diffusion":
@@ -48,7 +50,7 @@ def _metric_options(args) -> dict:
 
 
 def _diffusion_options(args) -> dict:
-    """Options of the diffusion metric from ``--kernel``, ``--tau`` and ``--steps``."""
+    """Options of the diffusion metric from ``--kernel``, ``--tau``, ``--steps``, ``--fill-holes``."""
     opts = {"kernel": args.kernel}
     if args.tau is not None:
         if args.kernel != "heat":
@@ -60,6 +62,13 @@ def _diffusion_options(args) -> dict:
             raise _UserError("--steps is the graph kernels' number of diffusion steps: use it with "
                              "--kernel connectivity or gaussian")
         opts["m"] = steps
+    from .metrics import DIFFUSION_FILL_HOLES
+
+    fill = getattr(args, "fill_holes", None)
+    if fill is not None and fill < 0:
+        raise _UserError(f"--fill-holes must be >= 0 (0: leave holes open), got {fill}")
+    # recorded as used: the library's default unless given, None when switched off
+    opts["fill_holes"] = DIFFUSION_FILL_HOLES if fill is None else (fill or None)
     return opts
 
 
@@ -76,6 +85,9 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                    help="diffusion steps m of the graph kernels (default 50)")
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
+    p.add_argument("--fill-holes", type=float, default=None, metavar="F",
+                   help="diffusion: close boundary loops shorter than F * sqrt(area) before computing "
+                        "the metric (default 0.5; 0 leaves holes open)")
 
 
 def _load(path: str):
@@ -403,6 +415,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
     q.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
+    q.add_argument("--fill-holes", type=float, default=None, metavar="F",
+                   help="diffusion: close boundary loops shorter than F * sqrt(area) before computing "
+                        "the metric (default 0.5; 0 leaves holes open)")
     q.add_argument("--weld-join", choices=("pinch", "tube"), default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")

@@ -24,7 +24,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .errors import GromovWarning, MeshError
 
-__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "as_vertices", "as_faces"]
+__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "as_vertices", "as_faces"]
 
 logger = logging.getLogger(__name__)
 
@@ -515,3 +515,59 @@ def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple
         if warn:
             warnings.warn(m, GromovWarning, stacklevel=2)
     return Mesh(v, f, input_ids=ids), report
+
+
+def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
+    """Close every boundary loop shorter than ``max_perimeter`` by a fan of triangles.
+
+    Each such loop ``(l_0, ..., l_{k-1})`` gets one new vertex ``c`` at the centroid of its
+    vertices and the faces ``(l_i, l_{i+1}, c)``, ordered against the face that holds the
+    boundary edge ``(l_i, l_{i+1})`` so that an oriented mesh stays oriented. Loops as long as
+    ``max_perimeter`` or longer (real open ends of a scan, a partial shape) are left open.
+
+    Small holes are usually acquisition noise: the surface was there and was not captured.
+    Metrics computed on the filled surface see a hole as the patch that closes it; the
+    diffusion metric uses this by default (:func:`gromov.metrics.metric_solver`, option
+    ``fill_holes``), because an insulating boundary raises the return probability of heat
+    near it and with it every diffusion distance from there (held-out TOSCA classes,
+    ``benchmarks/bench_heldout.py``: the ground-truth map's distortion with 20 holes
+    falls from 0.063 to about the clean shapes' level).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    max_perimeter : float
+        Loops whose length (sum of their edge lengths) is below this are filled.
+
+    Returns
+    -------
+    filled : Mesh
+        The mesh with the fans; its first ``mesh.n_vertices`` vertices are ``mesh``'s, in
+        order, with their ``input_ids``; the centroids follow, with ids past the largest
+        input id (they are not in the user's file).
+    n_filled : int
+        Number of loops filled (0: ``filled`` is ``mesh`` itself).
+    """
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"fill_holes needs a Mesh, got {type(mesh).__name__}")
+    if not np.isfinite(max_perimeter) or max_perimeter <= 0:
+        raise ValueError(f"max_perimeter must be a positive number, got {max_perimeter!r}")
+    V, F = mesh.vertices, mesh.faces
+    # directed edges of the faces: a loop edge (a, b) found here runs along the face order
+    n = mesh.n_vertices
+    directed = set((F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2) @ np.array([n, 1])).tolist())
+    centres, fans = [], []
+    for loop in mesh.boundary_loops:
+        nxt = np.roll(loop, -1)
+        if np.linalg.norm(V[nxt] - V[loop], axis=1).sum() >= max_perimeter:
+            continue
+        c = np.full(len(loop), n + len(centres))
+        along = int(loop[0]) * n + int(nxt[0]) in directed
+        fans.append(np.c_[nxt, loop, c] if along else np.c_[loop, nxt, c])
+        centres.append(V[loop].mean(axis=0))
+    if not centres:
+        return mesh, 0
+    first = int(mesh.input_ids.max()) + 1
+    filled = Mesh(np.vstack([V, centres]), np.vstack([F, *fans]),
+                  input_ids=np.r_[mesh.input_ids, first + np.arange(len(centres))])
+    return filled, len(centres)

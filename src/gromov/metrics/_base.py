@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import MetricError
 from ..mesh import Mesh, PointCloud
 
-__all__ = ["MetricSolver", "check_sources", "check_shape"]
+__all__ = ["MetricSolver", "RestrictedSolver", "check_sources", "check_shape"]
 
 logger = logging.getLogger(__name__)
 
@@ -141,3 +141,44 @@ class MetricSolver(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(n_vertices={self.n_vertices})"
+
+
+class RestrictedSolver(MetricSolver):
+    """A metric computed on a larger shape, seen on its first ``shape.n_vertices`` vertices.
+
+    Used for metrics computed on a mesh with its small holes filled
+    (:func:`gromov.mesh.fill_holes`): the filled mesh keeps the original vertices first,
+    so distances between them are the leading block of the filled mesh's distances.
+
+    Parameters
+    ----------
+    shape : Mesh
+        The shape the distances are reported on.
+    inner : MetricSolver
+        The solver on the larger shape whose first ``shape.n_vertices`` vertices are
+        ``shape``'s.
+    """
+
+    def __init__(self, shape, inner: MetricSolver):
+        if inner.n_vertices < shape.n_vertices:
+            raise ValueError(f"the inner solver has {inner.n_vertices} vertices, fewer than the "
+                             f"{shape.n_vertices} of the shape")
+        super().__init__(shape)
+        self.inner = inner
+        self.name = inner.name
+        self.symmetric_rows = inner.symmetric_rows
+
+    def _rows(self, sources: np.ndarray) -> np.ndarray:
+        return self.inner.from_sources(sources)[:, : self.n_vertices]
+
+    def pairwise(self, *, progress: Callable[[int], None] | None = None,
+                 chunk: int = 256) -> np.ndarray:
+        if self._pairwise is None:
+            n = self.n_vertices
+            d = np.array(self.inner.pairwise(progress=progress, chunk=chunk)[:n, :n])
+            d.flags.writeable = False
+            self._pairwise = d
+        return self._pairwise
+
+    def __repr__(self) -> str:
+        return f"RestrictedSolver(n_vertices={self.n_vertices}, inner={self.inner!r})"
