@@ -81,6 +81,9 @@ def main(argv=None):
     ap.add_argument("--samples", type=int, default=100)
     ap.add_argument("--weld-join", choices=("pinch", "tube"), default="pinch",
                     help="welds merge two vertices (pinch, as gromov reproduce) or add a handle (tube)")
+    ap.add_argument("--fill-holes", type=float, default=None, metavar="F",
+                    help="diffusion metrics: close loops shorter than F sqrt(area) (default: the "
+                         "library's, 0.5; 0 leaves holes open)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     tosca = TOSCA(Path(args.data) / "tosca")
@@ -94,6 +97,8 @@ def main(argv=None):
         others = [e for e in entries[1:] if e.label != ref.label]
         for name in names:
             metric, opts = METRICS[name]
+            if metric == "diffusion" and args.fill_holes is not None:
+                opts = {**opts, "fill_holes": args.fill_holes or None}
             t = time.perf_counter()
             sx = ShapeMetric(ref.mesh, metric, resolution=None, metric_options=opts)
             P = farthest_point_sampling(sx.distances, args.samples, seed=0).indices
@@ -143,6 +148,7 @@ def main(argv=None):
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "classes": args.classes,
+                                               "weld_join": args.weld_join, "fill_holes": args.fill_holes,
                                                "samples": args.samples, "summary": summary, "rows": rows},
                                               indent=1))
 

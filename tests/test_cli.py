@@ -181,12 +181,23 @@ def test_perturb_writes_mesh_and_ground_truth(tmp_path, capsys):
 
 
 def test_fill_holes_option(tmp_path, capsys):
-    src = tmp_path / "sphere.off"
-    gromov.save(icosphere(2), src)
+    from gromov.perturb import holes
+
+    src = tmp_path / "holed.off"
+    gromov.save(holes(icosphere(3), 4, radius=0.15, seed=0).mesh, src)
     out = tmp_path / "d.npz"
     assert main(["distances", str(src), "--metric", "geodesic", "--fill-holes", "0.5", "--out", str(out)]) == 2
     assert "--fill-holes applies to --metric diffusion" in capsys.readouterr().err
-    assert main(["distances", str(src), "--fill-holes", "-1", "--out", str(out)]) == 2
-    assert "--fill-holes must be >= 0" in capsys.readouterr().err
-    assert main(["distances", str(src), "--fill-holes", "0", "--samples", "5", "--out", str(out)]) == 0
-    assert np.load(out)["distances"].shape == (5, 5)
+    for bad in ("-1", "inf", "nan"):
+        assert main(["distances", str(src), "--fill-holes", bad, "--out", str(out)]) == 2
+        assert "--fill-holes must be a finite number >= 0" in capsys.readouterr().err
+    runs = {}
+    for fill in ("0", None):
+        assert main(["distances", str(src), "--samples", "6", "--out", str(out)]
+                    + ([] if fill is None else ["--fill-holes", fill])) == 0
+        z = np.load(out)
+        runs[fill] = (z["distances"], json.loads(str(z["options"])))
+    # the default closes the 4 holes (recorded as 0.5); 0 leaves them open (recorded as None)
+    assert runs[None][1] == {"kernel": "heat", "fill_holes": 0.5}
+    assert runs["0"][1] == {"kernel": "heat", "fill_holes": None}
+    assert not np.allclose(runs[None][0], runs["0"][0])

@@ -166,6 +166,7 @@ def test_diffusion_fills_small_holes_by_default():
     assert not isinstance(metric_solver(sphere, "diffusion"), RestrictedSolver)
     assert not isinstance(metric_solver(p.mesh, "geodesic"), RestrictedSolver)
     assert isinstance(metric_solver(p.mesh, "geodesic", fill_holes=0.5), RestrictedSolver)
-    for bad in (0, -1.0, True, "big", float("inf")):
+    assert isinstance(metric_solver(p.mesh, "diffusion", fill_holes=np.float32(0.5)), RestrictedSolver)
+    for bad in (0, -1.0, True, np.bool_(True), "big", float("inf"), float("nan")):
         with pytest.raises(ValueError, match="fill_holes must be a positive number or None"):
             metric_solver(p.mesh, "diffusion", fill_holes=bad)

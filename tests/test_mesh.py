@@ -183,3 +183,17 @@ def test_fill_holes_closes_small_loops_and_keeps_the_vertices():
             fill_holes(holed, bad)
     with pytest.raises(TypeError, match="fill_holes needs a Mesh"):
         fill_holes(PointCloud(np.zeros((3, 3))), 1.0)
+    # the other orientation: every face flipped, the fans follow
+    flipped = Mesh(holed.vertices, holed.faces[:, ::-1])
+    closed, k = fill_holes(flipped, 10.0)
+    f = closed.faces
+    directed = np.r_[f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]
+    assert k == 5 and len(np.unique(directed, axis=0)) == len(directed)
+    # two holes touching at one vertex (faces 0 and 81 of icosphere(2) share only vertex 43):
+    # the boundary walk gives one loop through 43 twice, which is not filled
+    ico = icosphere(2)
+    keep = np.ones(ico.n_faces, bool)
+    keep[[0, 81]] = False
+    bowtie = Mesh(ico.vertices, ico.faces[keep])
+    assert any(len(np.unique(loop)) < len(loop) for loop in bowtie.boundary_loops)
+    assert fill_holes(bowtie, 100.0) == (bowtie, 0)

@@ -65,8 +65,8 @@ def _diffusion_options(args) -> dict:
     from .metrics import DIFFUSION_FILL_HOLES
 
     fill = getattr(args, "fill_holes", None)
-    if fill is not None and fill < 0:
-        raise _UserError(f"--fill-holes must be >= 0 (0: leave holes open), got {fill}")
+    if fill is not None and not 0 <= fill < float("inf"):
+        raise _UserError(f"--fill-holes must be a finite number >= 0 (0: leave holes open), got {fill}")
     # recorded as used: the library's default unless given, None when switched off
     opts["fill_holes"] = DIFFUSION_FILL_HOLES if fill is None else (fill or None)
     return opts
@@ -234,7 +234,9 @@ def cmd_match(args) -> int:
 
 def _json_value(o):
     """numpy scalars and arrays (e.g. a weld's gaps) as JSON numbers and lists."""
-    return o.tolist() if hasattr(o, "tolist") else float(o)
+    if hasattr(o, "tolist"):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
 def cmd_perturb(args) -> int:

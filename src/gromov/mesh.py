@@ -523,7 +523,8 @@ def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
     Each such loop ``(l_0, ..., l_{k-1})`` gets one new vertex ``c`` at the centroid of its
     vertices and the faces ``(l_i, l_{i+1}, c)``, ordered against the face that holds the
     boundary edge ``(l_i, l_{i+1})`` so that an oriented mesh stays oriented. Loops as long as
-    ``max_perimeter`` or longer (real open ends of a scan, a partial shape) are left open.
+    ``max_perimeter`` or longer (real open ends of a scan, a partial shape) are left open, and
+    so are loops that are not simple (two holes touching at a vertex).
 
     Small holes are usually acquisition noise: the surface was there and was not captured.
     Metrics computed on the filled surface see a hole as the patch that closes it; the
@@ -553,17 +554,25 @@ def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
     if not np.isfinite(max_perimeter) or max_perimeter <= 0:
         raise ValueError(f"max_perimeter must be a positive number, got {max_perimeter!r}")
     V, F = mesh.vertices, mesh.faces
-    # directed edges of the faces: a loop edge (a, b) found here runs along the face order
     n = mesh.n_vertices
+    # directed edges of the faces: a loop edge (a, b) found here runs along its face's order
     directed = set((F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2) @ np.array([n, 1])).tolist())
+    be = np.sort(mesh.boundary_edges, axis=1)
+    boundary = set((be @ np.array([n, 1])).tolist())
     centres, fans = [], []
     for loop in mesh.boundary_loops:
         nxt = np.roll(loop, -1)
+        lo, hi = np.minimum(loop, nxt), np.maximum(loop, nxt)
+        # only simple closed loops: a loop through a vertex twice (two holes touching at a
+        # bow-tie vertex) or not closed by boundary edges is left open
+        if len(np.unique(loop)) < len(loop) or not all(int(k) in boundary for k in lo * n + hi):
+            continue
         if np.linalg.norm(V[nxt] - V[loop], axis=1).sum() >= max_perimeter:
             continue
         c = np.full(len(loop), n + len(centres))
-        along = int(loop[0]) * n + int(nxt[0]) in directed
-        fans.append(np.c_[nxt, loop, c] if along else np.c_[loop, nxt, c])
+        # each fan face runs against the face on the other side of its loop edge
+        along = np.array([int(k) in directed for k in loop * n + nxt])
+        fans.append(np.where(along[:, None], np.c_[nxt, loop, c], np.c_[loop, nxt, c]))
         centres.append(V[loop].mean(axis=0))
     if not centres:
         return mesh, 0

@@ -48,7 +48,7 @@ from .. import perturb as _perturb
 from ..errors import GromovError
 from ..gh import ShapeMetric
 from ..mesh import Mesh
-from ..metrics import metric_solver
+from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..resolution import WorkingMesh, simplify
 from . import datasets
 from .pairwise import gh_matrix, match_pairs, prepare
@@ -218,7 +218,7 @@ def _collection(dataset: str, data: Path | None):
 class _Shapes:
     """Working meshes per (class, pose), made once; perturbed shapes per entry.
 
-    ``weld_join``: how welds glue (:data:`WELD_JOIN`, :func:`gromov.perturb.weld`).
+    ``weld_join``: how welds glue (:data:`gromov.perturb.WELD_JOINS`, :func:`gromov.perturb.weld`).
     """
 
     def __init__(self, collection, resolution, weld_join: str = "pinch"):
@@ -558,7 +558,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         The command line, recorded in the results.
     diffusion : dict, optional
         Options of the diffusion metric (:func:`gromov.metric_solver`), e.g.
-        ``{"kernel": "connectivity", "m": 50}`` for the paper's graph diffusion or
+        ``{"kernel": "connectivity", "m": 50, "fill_holes": None}`` for the paper's graph diffusion
+        exactly (small holes are closed first unless ``"fill_holes": None``) or
         ``{"kernel": "biharmonic"}``; default: the heat kernel at tau = 0.005. Recorded in
         ``params``.
     weld_join : {"pinch", "tube"}, default "pinch"
@@ -598,6 +599,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         except TypeError as exc:
             raise ValueError(f"diffusion options {dict(diffusion)}: {exc}") from None
         st.metric_options["diffusion"] = dict(diffusion)
+    # recorded as run: the library's hole filling applies unless the options say otherwise
+    st.metric_options["diffusion"].setdefault("fill_holes", DIFFUSION_FILL_HOLES)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     collection = _collection(dataset, data)

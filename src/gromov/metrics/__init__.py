@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from ..mesh import Mesh
@@ -74,8 +76,10 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
     """
     fill = options.pop("fill_holes", DIFFUSION_FILL_HOLES if metric == "diffusion" else None)
     if fill is not None:
-        if isinstance(fill, bool) or not isinstance(fill, (int, float)) or not fill > 0 or fill == float("inf"):
-            raise ValueError(f"fill_holes must be a positive number or None, got {fill!r}")
+        if isinstance(fill, (bool, np.bool_)) or not isinstance(fill, numbers.Real) or not 0 < fill < np.inf:
+            raise ValueError(f"fill_holes must be a positive number or None (None: leave holes "
+                             f"open), got {fill!r}")
+        fill = float(fill)
         if metric in METRICS and isinstance(shape, Mesh) and shape.boundary_edges.size:
             from ..mesh import fill_holes
 

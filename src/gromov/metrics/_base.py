@@ -174,10 +174,20 @@ class RestrictedSolver(MetricSolver):
     def pairwise(self, *, progress: Callable[[int], None] | None = None,
                  chunk: int = 256) -> np.ndarray:
         if self._pairwise is None:
-            n = self.n_vertices
-            d = np.array(self.inner.pairwise(progress=progress, chunk=chunk)[:n, :n])
+            n = left = self.n_vertices
+
+            def rows_done(k: int) -> None:  # the inner solver counts its extra vertices too
+                nonlocal left
+                k = min(k, left)
+                left -= k
+                if k:
+                    progress(k)
+
+            d = np.array(self.inner.pairwise(progress=None if progress is None else rows_done,
+                                             chunk=chunk)[:n, :n])
             d.flags.writeable = False
             self._pairwise = d
+            self.inner._pairwise = None  # one (n, n) matrix per shape is kept, not two
         return self._pairwise
 
     def __repr__(self) -> str:
