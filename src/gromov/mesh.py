@@ -532,7 +532,7 @@ def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
     ``fill_holes``), because an insulating boundary raises the return probability of heat
     near it and with it every diffusion distance from there (held-out TOSCA classes,
     ``benchmarks/bench_heldout.py``: the ground-truth map's distortion with 20 holes
-    falls from 0.063 to about the clean shapes' level).
+    falls from 0.063 to 0.012, against 0.010 without holes).
 
     Parameters
     ----------
