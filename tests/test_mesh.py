@@ -134,7 +134,7 @@ def test_components_and_nonmanifold_reporting():
 def test_summary_and_top_level_api():
     s = torus().summary()
     assert s["euler_characteristic"] == 0 and s["genus"] == 1 and s["components"] == 1
-    for name in ("load", "save", "simplify", "metric_solver", "farthest_point_sampling"):
+    for name in ("load", "save", "simplify", "metric_solver", "farthest_point_sampling", "fill_holes"):
         assert hasattr(gromov, name)
 
 

@@ -12,7 +12,7 @@ from . import perturb
 from .errors import GromovError, GromovWarning, MeshError, MeshFormatError, MetricError
 from .gh import MatchResult, ShapeMetric, match
 from .io import load, save
-from .mesh import Mesh, PointCloud, RepairReport, repair
+from .mesh import Mesh, PointCloud, RepairReport, fill_holes, repair
 from .metrics import (
     EuclideanSolver,
     GeodesicSolver,
@@ -30,7 +30,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "GromovError", "GromovWarning", "MeshError", "MeshFormatError", "MetricError",
-    "load", "save", "Mesh", "PointCloud", "RepairReport", "repair",
+    "load", "save", "Mesh", "PointCloud", "RepairReport", "repair", "fill_holes",
     "MetricSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver",
     "EuclideanSolver", "metric_solver", "distance_matrix",
     "WorkingMesh", "simplify", "working_mesh", "Samples", "farthest_point_sampling",
