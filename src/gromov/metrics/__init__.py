@@ -13,8 +13,7 @@ import numbers
 
 import numpy as np
 
-from ..mesh import Mesh
-
+from ..mesh import Mesh, fill_holes
 from ._base import MetricSolver, RestrictedSolver, check_sources
 from .diffusion import (
     DIFFUSION_KERNELS,
@@ -30,7 +29,8 @@ from .euclidean import EuclideanSolver
 from .geodesic import GEODESIC_METHODS, GeodesicSolver
 
 __all__ = [
-    "METRICS", "MetricSolver", "RestrictedSolver", "metric_solver", "DIFFUSION_FILL_HOLES", "distance_matrix", "check_sources",
+    "METRICS", "MetricSolver", "RestrictedSolver", "metric_solver", "DIFFUSION_FILL_HOLES",
+    "distance_matrix", "check_sources",
     "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "EuclideanSolver",
     "GEODESIC_METHODS", "DIFFUSION_KERNELS", "affinity", "diffusion_operator",
     "brute_force_diffusion_distance", "cotan_laplacian",
@@ -82,8 +82,6 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
                              f"open), got {fill!r}")
         fill = float(fill)
         if metric in METRICS and isinstance(shape, Mesh) and shape.boundary_edges.size:
-            from ..mesh import fill_holes
-
             closed, n_filled = fill_holes(shape, fill * float(np.sqrt(shape.area)))
             if n_filled:
                 return RestrictedSolver(shape, metric_solver(closed, metric, fill_holes=None, **options))
