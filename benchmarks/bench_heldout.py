@@ -42,6 +42,7 @@ from gromov import farthest_point_sampling
 from gromov.experiments.datasets import TOSCA, experiment1, experiment2
 from gromov.experiments.reproduce import _pair_quality, _Shapes
 from gromov.gh import ShapeMetric, match
+from gromov.perturb import WELD_JOINS
 
 HERE = Path(__file__).resolve().parent
 METRICS = {
@@ -79,7 +80,7 @@ def main(argv=None):
     ap.add_argument("--classes", default="horse,centaur,wolf,michael")
     ap.add_argument("--metrics", default=",".join(METRICS))
     ap.add_argument("--samples", type=int, default=100)
-    ap.add_argument("--weld-join", choices=("pinch", "tube"), default="pinch",
+    ap.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                     help="welds merge two vertices (pinch, as gromov reproduce) or add a handle (tube)")
     ap.add_argument("--fill-holes", type=float, default=None, metavar="F",
                     help="diffusion metrics: close loops shorter than F sqrt(area) (default: the "

@@ -349,6 +349,8 @@ def cmd_reproduce(args) -> int:
 
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
+    from .perturb import WELD_JOINS
+
     p = argparse.ArgumentParser(prog="gromov", description=(
         "Non-rigid shape matching in the Gromov-Hausdorff framework with diffusion geometry."))
     p.add_argument("--version", action="version", version=f"gromov {__version__}")
@@ -397,7 +399,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--radius", type=float, default=None,
                    help="weld: search radius for close pairs; holes: geodesic radius (defaults in the docs)")
     q.add_argument("--seed", type=int, default=0)
-    q.add_argument("--join", choices=("tube", "pinch"), default=None,
+    q.add_argument("--join", choices=WELD_JOINS, default=None,
                    help="weld: join the two places by a short handle (tube, default) or merge "
                         "their vertices (pinch)")
     q.set_defaults(func=cmd_perturb)
@@ -420,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--fill-holes", type=float, default=None, metavar="F",
                    help="diffusion: close boundary loops shorter than F * sqrt(area) before computing "
                         "the metric (default 0.5; 0 leaves holes open)")
-    q.add_argument("--weld-join", choices=("pinch", "tube"), default="pinch",
+    q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")
     q.set_defaults(func=cmd_reproduce)

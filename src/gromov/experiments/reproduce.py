@@ -222,8 +222,6 @@ class _Shapes:
     """
 
     def __init__(self, collection, resolution, weld_join: str = "pinch"):
-        if weld_join not in _perturb.WELD_JOINS:
-            raise ValueError(f"weld_join must be one of {_perturb.WELD_JOINS}, got {weld_join!r}")
         self.collection = collection
         self.resolution = resolution
         self.weld_join = weld_join
