@@ -1,0 +1,74 @@
+"""The diagnostic scripts under benchmarks/ compute what they say (no timings here)."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gromov.experiments.recognition import equal_error_rate
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _module(name):
+    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _results(D, labels, perturbed):
+    return {"recognition": {"weld": {"labels": labels, "perturbed": perturbed,
+                                     "geodesic": {"relative": D.tolist()},
+                                     "diffusion": {"relative": D.tolist()}}}}
+
+
+def test_eer_breakdown_isolates_the_male_female_pairs():
+    eb = _module("eer_breakdown")
+    labels = ["cat", "cat", "david", "david", "victoria", "victoria"]
+    perturbed = [False, True, False, True, False, True]
+    # within a class 1, between classes 5, except david <-> victoria at 0.5: the only confusion
+    lab = np.array(labels)
+    D = np.where(lab[:, None] == lab[None], 1.0, 5.0)
+    dv = np.isin(lab, ("david", "victoria"))
+    D[dv[:, None] & dv[None] & (lab[:, None] != lab[None])] = 0.5
+    np.fill_diagonal(D, 0.0)
+    out = eb.breakdown(_results(D, labels, perturbed))
+    row = out["weld", "diffusion"]
+    assert row["all"] == pytest.approx(equal_error_rate(D, lab)) and row["all"] > 0.1
+    assert row["without david-victoria pairs"] == 0.0
+    # clean shapes: one per class, so no positive pair among them
+    assert row["clean only"] is None
+
+
+def test_eer_breakdown_clean_subset_uses_only_clean_pairs():
+    eb = _module("eer_breakdown")
+    labels = ["cat", "cat", "cat", "dog", "dog", "dog"]
+    perturbed = [False, False, True, False, False, True]
+    lab = np.array(labels)
+    D = np.where(lab[:, None] == lab[None], 1.0, 3.0)
+    # the perturbed cat is far from its class: an error that the clean subset must not see
+    D[2, :3] = D[:3, 2] = 10.0
+    np.fill_diagonal(D, 0.0)
+    row = eb.breakdown(_results(D, labels, perturbed))["weld", "geodesic"]
+    assert row["all"] > 0.0
+    assert row["clean only"] == 0.0
+
+
+def test_weld_contact_pinch_merges_and_keeps_input_ids():
+    wc = _module("bench_weld_contact")
+    from gromov.shapes import torus
+
+    m = torus()
+    u, v = 0, m.n_vertices // 2
+    w = wc._pinch(m, [(u, v)])
+    assert w.n_vertices == m.n_vertices - 1
+    assert w.n_faces == m.n_faces
+    assert not np.isin(v, w.input_ids)
+    assert wc._rows_of(w, [m.input_ids[v]])[0] == -1
+    # v's faces now use u: the merged vertex has the degree of both
+    iu = wc._rows_of(w, [m.input_ids[u]])[0]
+    assert np.count_nonzero(w.faces == iu) == np.count_nonzero(m.faces == u) + np.count_nonzero(m.faces == v)
+    # one vertex fewer, same edges and faces: the Euler characteristic drops by one
+    assert w.euler_characteristic == m.euler_characteristic - 1
