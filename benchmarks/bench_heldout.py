@@ -85,6 +85,9 @@ def main(argv=None):
     ap.add_argument("--fill-holes", type=float, default=None, metavar="F",
                     help="diffusion metrics: close loops shorter than F sqrt(area) (default: the "
                          "library's, 0.5; 0 leaves holes open)")
+    ap.add_argument("--search-vertices", type=int, default=None, metavar="K",
+                    help="restrict GMDS's initial search to K farthest point samples of the target "
+                         "(gromov.match's search_vertices; default: the library's)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     tosca = TOSCA(Path(args.data) / "tosca")
@@ -111,7 +114,8 @@ def main(argv=None):
                 ok = truth >= 0
                 scale = float(np.median(sy.distances[np.ix_(truth[ok], truth[ok])][~np.eye(ok.sum(), dtype=bool)]
                                         / sx.distances[np.ix_(P[ok], P[ok])][~np.eye(ok.sum(), dtype=bool)]))
-                r = match(sx, sy, metric, n_samples=args.samples)
+                extra = {} if args.search_vertices is None else {"search_vertices": args.search_vertices}
+                r = match(sx, sy, metric, n_samples=args.samples, **extra)
                 q = _pair_quality(r, shapes, ref, y)
                 # the match's samples are these same P (ShapeMetric.samples: FPS, seed 0)
                 xs, found = _rows_of(ref.mesh, r.x_samples), _rows_of(y.mesh, r.x_to_y_vertex)
@@ -150,6 +154,7 @@ def main(argv=None):
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "classes": args.classes,
                                                "weld_join": args.weld_join, "fill_holes": args.fill_holes,
+                                               "search_vertices": args.search_vertices,
                                                "samples": args.samples, "summary": summary, "rows": rows},
                                               indent=1))
 

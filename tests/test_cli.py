@@ -145,6 +145,13 @@ def test_match_json_and_out(tmp_path, capsys):
     img = z["x_to_y_vertex"]
     candidates = [u * 11 + w, (20 - u) * 11 + w, u * 11 + (10 - w), (20 - u) * 11 + (10 - w)]
     assert max(np.mean(img == c) for c in candidates) >= 0.9
+    # the search on a subset of vertices finds the isometry too
+    rc = main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "--json",
+               "--search-vertices", "60"])
+    assert rc == 0
+    assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
+    with pytest.raises(SystemExit):
+        main(["match", str(x), str(y), "--search-vertices", "0"])
 
 
 def test_match_gw_solver_and_errors(tmp_path, capsys):

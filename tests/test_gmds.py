@@ -93,11 +93,32 @@ def test_errors():
         match(x, x, "geodesic", n_samples=10, solver="icp", resolution=None)
     with pytest.raises(ValueError, match="prepared for"):
         match(ShapeMetric(x, "geodesic", resolution=None), x, "diffusion", n_samples=10)
-    for bad in ({"n_starts": 0}, {"n_extend": 0}, {"n_extend": 2.5}, {"n_starts": True}):
+    for bad in ({"n_starts": 0}, {"n_extend": 0}, {"n_extend": 2.5}, {"n_starts": True},
+                {"search_vertices": 0}, {"search_vertices": 50.0}):
         with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive integer"):
             match(x, x, "geodesic", n_samples=10, resolution=None, **bad)
     r = match(x, x, "geodesic", n_samples=10, resolution=None, n_starts=np.int64(4), n_extend=np.uint8(2))
     assert r.relative_distance < 1e-9  # numpy integers are integers
+
+
+def test_search_on_a_vertex_subset_then_polished_on_all_vertices():
+    """The initial search restricted to farthest point samples of the target still finds the
+    isometry, and its images end on vertices outside that subset (the final descent runs
+    over all vertices)."""
+    from gromov.gh import greedy_init
+
+    x = grid(31, 16)
+    y = Mesh(x.vertices[:, [1, 0, 2]] * [1, -1, 1] + 3.0, x.faces[:, ::-1])  # rigidly moved
+    sx, sy = ShapeMetric(x, "geodesic", resolution=None), ShapeMetric(y, "geodesic", resolution=None)
+    P = sx.samples(40, 3)  # other samples than the subset's (seed 0), so images can be off it
+    dom = sy.samples(60, 0)
+    dx = sx.distances[np.ix_(P, P)]
+    img = greedy_init(dx, sy.distances, np.arange(0, y.n_vertices, 7), domain=dom)
+    cost = np.sqrt(np.mean((dx - sy.distances[np.ix_(img, img)]) ** 2))
+    assert cost < 1e-9 * sx.diameter  # exact: the grid maps onto itself vertex by vertex
+    assert not np.isin(img, dom).all()
+    r = match(sx, sy, "geodesic", n_samples=40, search_vertices=60)
+    assert r.relative_distance < 1e-3
 
 
 def test_surface_distance_refuses_what_gmds_cannot_use():

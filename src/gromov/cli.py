@@ -214,7 +214,7 @@ def cmd_match(args) -> int:
             s.distances
             bar.update(1)
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
-              solver=args.solver, seed=args.seed)
+              solver=args.solver, seed=args.seed, search_vertices=args.search_vertices)
     if args.out:
         out = Path(args.out)
         if out.parent and not out.parent.exists():
@@ -385,6 +385,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="symmetric GMDS (default) or Gromov-Wasserstein (POT) on the same samples")
     q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
+    q.add_argument("--search-vertices", type=_positive_int, default=None, metavar="K",
+                   help="faster, less reliable on welded shapes: run GMDS's initial search on K "
+                        "farthest point samples of each shape (e.g. 500; default: all vertices)")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
