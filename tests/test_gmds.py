@@ -97,6 +97,9 @@ def test_errors():
                 {"search_vertices": 0}, {"search_vertices": 50.0}):
         with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive integer"):
             match(x, x, "geodesic", n_samples=10, resolution=None, **bad)
+    for bad in ([], [(0, None)], [(12, 0)], "x", [(12,)]):
+        with pytest.raises(ValueError, match="coarse_stages must be"):
+            match(x, x, "geodesic", n_samples=10, resolution=None, coarse_stages=bad)
     r = match(x, x, "geodesic", n_samples=10, resolution=None, n_starts=np.int64(4), n_extend=np.uint8(2))
     assert r.relative_distance < 1e-9  # numpy integers are integers
 
@@ -118,6 +121,11 @@ def test_search_on_a_vertex_subset_then_polished_on_all_vertices():
     assert cost < 1e-9 * sx.diameter  # exact: the grid maps onto itself vertex by vertex
     assert not np.isin(img, dom).all()
     r = match(sx, sy, "geodesic", n_samples=40, search_vertices=60)
+    assert r.relative_distance < 1e-3
+    # a coarse stage over a vertex subset, beside one over all vertices: the same isometry
+    img2 = greedy_init(dx, sy.distances, np.arange(0, y.n_vertices, 7), stages=[(6, None), (10, dom)])
+    assert np.sqrt(np.mean((dx - sy.distances[np.ix_(img2, img2)]) ** 2)) < 1e-9 * sx.diameter
+    r = match(sx, sy, "geodesic", n_samples=40, coarse_stages=[(12, None), (20, 60)])
     assert r.relative_distance < 1e-3
 
 

@@ -251,7 +251,7 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
         else:
             imgs, costs = _kernel.coarse_starts(head, DY, candidates, 20)
         coarse.append(sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist())))
-    per_stage = -(-n_extend // len(coarse))
+    per_stage = -(-int(n_extend) // len(coarse))  # evenly, rounded up
     R, C = np.empty((len(dx_pp), len(DY))), np.empty((len(dx_pp), len(DY)))  # work arrays
     best, best_cost, seen = None, np.inf, set()
     for scored in coarse:
