@@ -374,9 +374,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     search_vertices : int or None, default None
         Restrict the initial search (both stages above) to this many farthest point samples
         of each target shape, then polish the best start by discrete descent over all
-        working vertices. About 2.5-4 times faster per match, and less reliable on welded
-        shapes: on the held-out classes (``benchmarks/bench_heldout.py --search-vertices
-        500``, against the full search) mean d(C, C0) with the geodesic metric stayed
+        working vertices (the coarse stages then all run on the subset). About 2.5-4 times
+        faster per match, and less reliable on welded shapes: on the held-out classes
+        (``benchmarks/bench_heldout.py --search-vertices 500``, against the full search, both
+        with the one-stage search of session 5) mean d(C, C0) with the geodesic metric stayed
         0.024 / 0.066 / 0.025 / 0.024 (clean / welds / 10 / 20 holes; was 0.023 / 0.066 /
         0.025 / 0.024), with the heat-kernel diffusion metric 0.026 / **0.098** / 0.049 /
         0.035 (was 0.031 / 0.034 / 0.048 / 0.041). With 1,000: geodesic 0.025 / 0.072 / 0.025 /
