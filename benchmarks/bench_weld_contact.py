@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -46,6 +47,9 @@ from gromov.experiments.reproduce import _Shapes
 from gromov.gh import ShapeMetric
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))  # the sibling benchmark's helpers
+from bench_heldout import _rows_of  # noqa: E402
+
 METRICS = {
     "geodesic": ("geodesic", {}),
     "heat 0.005": ("diffusion", {"kernel": "heat", "tau": 0.005}),
@@ -54,12 +58,6 @@ METRICS = {
 GAPS = (1.5, 3.0, 5.0)
 RESOLUTIONS = (1500, 3000, 6000)
 WELDS, SEED = 3, 7
-
-
-def _rows_of(mesh: Mesh, input_ids) -> np.ndarray:
-    """Working vertex of ``mesh`` with each input id (-1 where it is gone)."""
-    pos = {int(v): i for i, v in enumerate(mesh.input_ids)}
-    return np.array([pos.get(int(v), -1) for v in input_ids], dtype=np.int64)
 
 
 def _pinch(mesh: Mesh, pairs) -> Mesh:
