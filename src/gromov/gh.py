@@ -228,25 +228,23 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
     """
     dx_pp = np.ascontiguousarray(dx_pp, dtype=np.float64)
     candidates = np.asarray(candidates, dtype=np.int64)
-    if domain is not None:
-        dom = np.union1d(np.asarray(domain, dtype=np.int64), candidates)
-        if len(dom) < len(DY):
-            sub = np.ascontiguousarray(DY[np.ix_(dom, dom)], dtype=np.float64)
-            img = dom[greedy_init(dx_pp, sub, np.searchsorted(dom, candidates),
-                                  stages=[(c, None) for c, _ in stages], n_extend=n_extend)]
-            R, C = np.empty((len(dx_pp), len(DY))), np.empty((len(dx_pp), len(DY)))
-            DY = np.ascontiguousarray(DY, dtype=np.float64)
-            # all images given: no placement, discrete descent over every vertex of Y
-            return _kernel.place_and_descend_blas(dx_pp, DY, img, 20, R, C)[0]
+    restricted = _on_subset(DY, domain, candidates)
+    if restricted is not None:
+        dom, sub, cand = restricted
+        img = dom[greedy_init(dx_pp, sub, cand, stages=[(c, None) for c, _ in stages], n_extend=n_extend)]
+        R, C = np.empty((len(dx_pp), len(DY))), np.empty((len(dx_pp), len(DY)))
+        DY = np.ascontiguousarray(DY, dtype=np.float64)
+        # all images given: no placement, discrete descent over every vertex of Y
+        return _kernel.place_and_descend_blas(dx_pp, DY, img, 20, R, C)[0]
     DY = np.ascontiguousarray(DY, dtype=np.float64)
     coarse = []
     for c, vertices in stages:
         c = min(int(c), len(dx_pp))
         head = np.ascontiguousarray(dx_pp[:c, :c])
-        dom = None if vertices is None else np.union1d(np.asarray(vertices, dtype=np.int64), candidates)
-        if dom is not None and len(dom) < len(DY):
-            imgs, costs = _kernel.coarse_starts(head, np.ascontiguousarray(DY[np.ix_(dom, dom)]),
-                                                np.searchsorted(dom, candidates), 20)
+        restricted = _on_subset(DY, vertices, candidates)
+        if restricted is not None:
+            dom, sub, cand = restricted
+            imgs, costs = _kernel.coarse_starts(head, sub, cand, 20)
             imgs = dom[imgs]
         else:
             imgs, costs = _kernel.coarse_starts(head, DY, candidates, 20)
@@ -268,6 +266,17 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
             if taken >= per_stage:
                 break
     return best
+
+
+def _on_subset(DY: np.ndarray, vertices, candidates: np.ndarray):
+    """``(dom, DY[dom][:, dom], candidates as positions in dom)`` with ``dom`` the given vertices
+    and the candidates, sorted; None when ``vertices`` is None or ``dom`` is all of Y."""
+    if vertices is None:
+        return None
+    dom = np.union1d(np.asarray(vertices, dtype=np.int64), candidates)
+    if len(dom) >= len(DY):
+        return None
+    return dom, np.ascontiguousarray(DY[np.ix_(dom, dom)], dtype=np.float64), np.searchsorted(dom, candidates)
 
 
 def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.ndarray:
@@ -439,7 +448,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         if search_vertices is not None:
             dom_y = sy.samples(min(search_vertices, sy.mesh.n_vertices), 0)
             dom_x = sx.samples(min(search_vertices, sx.mesh.n_vertices), 0)
-        def stages(s):
+        def stages(s):  # each stage's vertex subset (unused when the whole search has one)
+            if search_vertices is not None:
+                return [(c, None) for c, _ in coarse_stages]
             return [(c, None if k is None else s.samples(min(k, s.mesh.n_vertices), 0)) for c, k in coarse_stages]
 
         fwd = greedy_init(dx_pp, DY, cand_y, stages=stages(sy), n_extend=n_extend, domain=dom_y)
