@@ -54,3 +54,19 @@ def test_keep_returns_the_full_match_of_the_asked_pairs():
     assert full.distance == r.distance[0, 2] and len(full.x_to_y_vertex) == 20
     with pytest.raises(ValueError, match="keep needs pairs"):
         gh_matrix(shapes[:3], "geodesic", n_samples=20, resolution=None, keep=[(2, 0)])
+
+
+def test_prepare_computes_the_search_subsets_once_per_shape():
+    from gromov.experiments.pairwise import _subsets, prepare
+    from gromov.gh import DEFAULT_COARSE_STAGES, search_subsets
+
+    shapes, _ = _sheets()
+    # the default search's subsets, or the one of search_vertices
+    assert _subsets({}) == [k for _, k in DEFAULT_COARSE_STAGES if k is not None]
+    assert _subsets({"search_vertices": 40}) == [40]
+    assert search_subsets(((12, None),)) == []
+    (s,) = prepare(shapes[:1], "geodesic", n_samples=10, resolution=None, subsets=[40])
+    # the subset match will ask for is already there (no farthest point sampling per pair)
+    assert (40, 0) in s._samples
+    np.testing.assert_array_equal(s.subset(40), s._samples[40, 0])
+    assert len(s.subset(10**6)) == s.mesh.n_vertices  # capped at the working vertices

@@ -129,6 +129,11 @@ class ShapeMetric:
             self._samples[key] = farthest_point_sampling(self.distances, n, seed=seed).indices
         return self._samples[key]
 
+    def subset(self, k: int) -> np.ndarray:
+        """``k`` farthest point samples (seed 0; all vertices if fewer): the vertex subset an
+        initial search of :func:`match` runs on (``coarse_stages``, ``search_vertices``)."""
+        return self.samples(min(int(k), self.mesh.n_vertices), 0)
+
     def locate(self, pts: SurfacePoints):
         """Carry points on the working mesh to the input mesh: (face, bary, nearest vertex) there."""
         pos = pts.positions(self.mesh.vertices, self.mesh.faces)
@@ -266,6 +271,14 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
             if taken >= per_stage:
                 break
     return best
+
+
+def search_subsets(coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = None) -> list[int]:
+    """Sizes of the vertex subsets (:meth:`ShapeMetric.subset`) that :func:`match` searches on
+    with these options, so that they can be computed once per shape."""
+    if search_vertices is not None:
+        return [int(search_vertices)]
+    return [int(k) for _, k in coarse_stages if k is not None]
 
 
 def _on_subset(DY: np.ndarray, vertices, candidates: np.ndarray):
@@ -411,9 +424,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"solver must be 'gmds' or 'gw', got {solver!r}")
     if init not in ("greedy", "gw"):
         raise ValueError(f"init must be 'greedy' or 'gw', got {init!r}")
-    for name, value in (("n_starts", n_starts), ("n_extend", n_extend), ("search_vertices", search_vertices)):
-        if name == "search_vertices" and value is None:
-            continue
+    checked = [("n_starts", n_starts), ("n_extend", n_extend)]
+    if search_vertices is not None:
+        checked.append(("search_vertices", search_vertices))
+    for name, value in checked:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     try:
@@ -444,17 +458,14 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         cand_x = _candidates(sy.descriptors[Q[0]], sx, n_starts)
         # each direction on its own, then the other direction anchored on it; keep the
         # consistent pair with the lower two-sided distortion
-        dom_y = dom_x = None
-        if search_vertices is not None:
-            dom_y = sy.samples(min(search_vertices, sy.mesh.n_vertices), 0)
-            dom_x = sx.samples(min(search_vertices, sx.mesh.n_vertices), 0)
-        def stages(s):  # each stage's vertex subset (unused when the whole search has one)
-            if search_vertices is not None:
-                return [(c, None) for c, _ in coarse_stages]
-            return [(c, None if k is None else s.samples(min(k, s.mesh.n_vertices), 0)) for c, k in coarse_stages]
+        def search(s):  # (stages, domain): the vertex subsets of the initial search on s
+            if search_vertices is not None:  # one subset for the whole search
+                return [(c, None) for c, _ in coarse_stages], s.subset(search_vertices)
+            return [(c, None if k is None else s.subset(k)) for c, k in coarse_stages], None
 
-        fwd = greedy_init(dx_pp, DY, cand_y, stages=stages(sy), n_extend=n_extend, domain=dom_y)
-        bwd = greedy_init(dy_qq, DX, cand_x, stages=stages(sx), n_extend=n_extend, domain=dom_x)
+        (st_y, dom_y), (st_x, dom_x) = search(sy), search(sx)
+        fwd = greedy_init(dx_pp, DY, cand_y, stages=st_y, n_extend=n_extend, domain=dom_y)
+        bwd = greedy_init(dy_qq, DX, cand_x, stages=st_x, n_extend=n_extend, domain=dom_x)
         pairs = [(fwd, anchored_images(DX, P, DY[np.ix_(Q, fwd)])),
                  (anchored_images(DY, Q, DX[np.ix_(P, bwd)]), bwd)]
         scores = [gm.distortion(SurfacePoints.at_vertices(sy.mesh, a), SurfacePoints.at_vertices(sx.mesh, b), 2.0)

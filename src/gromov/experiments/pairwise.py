@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gh import ShapeMetric, match
+from ..gh import DEFAULT_COARSE_STAGES, ShapeMetric, match, search_subsets
 
 __all__ = ["PairwiseGH", "gh_matrix", "match_pairs", "prepare"]
 
@@ -62,11 +62,13 @@ def _one_thread_per_worker():
 
 
 def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolution: int | None = 3000,
-            metric_options: dict | None = None, progress: bool = False) -> list[ShapeMetric]:
+            metric_options: dict | None = None, progress: bool = False,
+            subsets=tuple(search_subsets())) -> list[ShapeMetric]:
     """Each shape's working mesh, dense metric, diameter, descriptors and samples, once.
 
     ``shapes`` are meshes, paths or :class:`ShapeMetric` objects (whose metric must be
-    ``metric``); returns the prepared ``ShapeMetric`` objects in the same order.
+    ``metric``); returns the prepared ``ShapeMetric`` objects in the same order. ``subsets``:
+    sizes of the vertex subsets the initial search runs on (:func:`gromov.gh.search_subsets`).
     """
     from tqdm import tqdm
 
@@ -77,8 +79,15 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
         elif s.metric != metric:
             raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
         s.distances, s.diameter, s.descriptors, s.samples(n_samples, seed)  # per shape, once
+        for k in subsets:
+            s.subset(k)
         out.append(s)
     return out
+
+
+def _subsets(match_options: dict) -> list[int]:
+    return search_subsets(match_options.get("coarse_stages", DEFAULT_COARSE_STAGES),
+                          match_options.get("search_vertices"))
 
 
 def _run(prepared, pairs, keep, jobs, progress, desc, options):
@@ -119,7 +128,8 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
-                       metric_options=metric_options, progress=progress)
+                       metric_options=metric_options, progress=progress,
+                       subsets=_subsets(match_options))
     n = len(prepared)
     bad = [ij for ij in pairs if not (0 <= ij[0] < n and 0 <= ij[1] < n)]
     if bad:
@@ -165,7 +175,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     t0 = time.perf_counter()
     prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
-                       metric_options=metric_options, progress=progress)
+                       metric_options=metric_options, progress=progress,
+                       subsets=_subsets(match_options))
     t1 = time.perf_counter()
     n = len(prepared)
     keep = frozenset((int(i), int(j)) for i, j in keep)
