@@ -24,16 +24,22 @@ def _results(D, labels, perturbed):
                                      "diffusion": {"relative": D.tolist()}}}}
 
 
+def _by_class(labels, within, between):
+    """Distances ``within`` a class and ``between`` classes, zero diagonal."""
+    lab = np.array(labels)
+    D = np.where(lab[:, None] == lab[None], within, between)
+    np.fill_diagonal(D, 0.0)
+    return D, lab
+
+
 def test_eer_breakdown_isolates_the_male_female_pairs():
     eb = _module("eer_breakdown")
     labels = ["cat", "cat", "david", "david", "victoria", "victoria"]
     perturbed = [False, True, False, True, False, True]
     # within a class 1, between classes 5, except david <-> victoria at 0.5: the only confusion
-    lab = np.array(labels)
-    D = np.where(lab[:, None] == lab[None], 1.0, 5.0)
+    D, lab = _by_class(labels, 1.0, 5.0)
     dv = np.isin(lab, ("david", "victoria"))
     D[dv[:, None] & dv[None] & (lab[:, None] != lab[None])] = 0.5
-    np.fill_diagonal(D, 0.0)
     out = eb.breakdown(_results(D, labels, perturbed))
     row = out["weld", "diffusion"]
     assert row["all"] == pytest.approx(equal_error_rate(D, lab)) and row["all"] > 0.1
@@ -46,11 +52,10 @@ def test_eer_breakdown_clean_subset_uses_only_clean_pairs():
     eb = _module("eer_breakdown")
     labels = ["cat", "cat", "cat", "dog", "dog", "dog"]
     perturbed = [False, False, True, False, False, True]
-    lab = np.array(labels)
-    D = np.where(lab[:, None] == lab[None], 1.0, 3.0)
+    D, _ = _by_class(labels, 1.0, 3.0)
     # the perturbed cat is far from its class: an error that the clean subset must not see
     D[2, :3] = D[:3, 2] = 10.0
-    np.fill_diagonal(D, 0.0)
+    D[2, 2] = 0.0
     row = eb.breakdown(_results(D, labels, perturbed))["weld", "geodesic"]
     assert row["all"] > 0.0
     assert row["clean only"] == 0.0
