@@ -5,7 +5,8 @@ Run:  .venv/bin/python benchmarks/bench_foundation.py [--data DIR] [--n 3000] [-
 working mesh; the script prints times, errors and ratios. Timings on a shared machine are
 noisy: each timed step takes the best of ``--repeat`` runs.
 
-1. Geodesic all-pairs on a ~3,000-vertex TOSCA cat working mesh: our fast marching vs
+1. Geodesic all-pairs on a ~3,000-vertex TOSCA cat working mesh: our fast marching (also with
+   ``refine`` levels, ``--refine``) vs
    potpourri3d's heat method and potpourri3d's fast marching (geometry-central), with the
    error of each against exact MMP geodesics (pygeodesic) from ``--sources`` random sources;
    the exact method's all-pairs time is extrapolated from those sources.
@@ -56,6 +57,9 @@ def main(argv=None):
     p.add_argument("--n", type=int, default=3000, help="working mesh size")
     p.add_argument("--sources", type=int, default=30, help="sources for the exact-error reference")
     p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--refine", default="1,2",
+                   help="also time our fast marching with these refine levels (comma separated, "
+                        "best of one run each; '' for none)")
     p.add_argument("--json", default=None, help="also write the numbers to this file")
     args = p.parse_args(argv)
     tosca = Path(args.data) / "tosca"
@@ -88,8 +92,11 @@ def main(argv=None):
 
     t_heat, d_heat = best_of(heat_all, args.repeat)
     t_ppf, d_ppf = best_of(pp3d_fmm_all, 1)
-    rows = [("gromov fmm (ours)", t_fmm, d_fmm[src]), ("potpourri3d heat", t_heat, d_heat[src]),
-            ("potpourri3d fmm", t_ppf, d_ppf[src])]
+    rows = [("gromov fmm (ours)", t_fmm, d_fmm[src])]
+    for r in (int(x) for x in args.refine.split(",") if x.strip()):
+        t_r, d_r = best_of(lambda: GeodesicSolver(w, method="fmm", refine=r).pairwise(), 1)
+        rows.append((f"gromov fmm refine={r}", t_r, d_r[src]))
+    rows += [("potpourri3d heat", t_heat, d_heat[src]), ("potpourri3d fmm", t_ppf, d_ppf[src])]
     print(f"    {'method':<22}{'time [s]':>10}{'vs ours':>9}{'mean rel err':>14}{'max rel err':>13}")
     geo = {"n_vertices": n, "sources": int(len(src)), "exact_seconds_extrapolated": exact_all}
     for name, t, d in rows:

@@ -94,6 +94,10 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
           "--out", "{tmp}/x.npz"], "--tau is the heat kernel's"),
         (["distances", "{sphere}", "--metric", "diffusion", "--steps", "20", "--out", "{tmp}/x.npz"],
          "--steps is the graph kernels'"),
+        (["distances", "{sphere}", "--metric", "diffusion", "--refine", "1", "--out", "{tmp}/x.npz"],
+         "--refine applies to --metric geodesic"),
+        (["distances", "{sphere}", "--metric", "geodesic", "--geodesic-method", "heat", "--refine", "1",
+          "--out", "{tmp}/x.npz"], "--refine applies to --metric geodesic"),
     ],
 )
 def test_user_errors_are_one_line_without_traceback(tmp_path, argv, message):

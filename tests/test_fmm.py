@@ -12,6 +12,7 @@ from gromov.metrics._fmm import (
     _face_lengths,
     _march,
     _polar,
+    subdivide,
 )
 from gromov.shapes import grid, icosphere, rolled_grid
 
@@ -182,12 +183,104 @@ def test_cat_working_mesh_against_exact_geodesics(cat_working):
     rel_plain = _rel_err(FastMarching(v, f, _update="source").distances(src), exact)
     # 0.198%, 0.82%, 3.4% when written (0.38%, 1.04%, 4.8% without directions; 0.20%,
     # 0.93%, 8.5% on the given triangulation, without the consistency test). The issue's
-    # 3% max is not met: the 3.4% is an underestimate at a shock, where a rejected fit
-    # falls back to a planar value that is too small (see _fmm's docstring).
+    # 3% max is not met on the working mesh itself: the 3.4% is an underestimate at a
+    # shock, where a rejected fit falls back to a planar value that is too small (see
+    # _fmm's docstring); with refine=2 it is (next test).
     assert rel.mean() <= 0.005, rel.mean()
     assert np.percentile(rel, 99) <= 0.012, np.percentile(rel, 99)
     assert rel.max() <= 0.05, rel.max()
     assert rel.mean() < 0.75 * rel_plain.mean()
+
+
+def test_refined_marching_on_the_cat_is_within_3_percent(cat_working):
+    # the accuracy target (1% mean, 3% max against exact MMP on the 3,000-vertex
+    # cat) with the fast marching run on the twice-subdivided mesh; 100 random sources,
+    # not the 12 above. Measured when written, max / p99 / mean: refine 0 -- 7.89% /
+    # 1.00% / 0.209%; 1 -- 3.69% / 0.55% / 0.113%; 2 -- 1.74% / 0.33% / 0.066%.
+    pytest.importorskip("pygeodesic.geodesic")
+    from gromov.metrics import GeodesicSolver
+
+    w = cat_working.mesh
+    src = np.random.default_rng(0).choice(w.n_vertices, 100, replace=False)
+    exact = GeodesicSolver(w, method="exact").from_sources(src)
+    v, f = np.asarray(w.vertices), np.asarray(w.faces)
+    rel = [_rel_err(FastMarching(v, f, refine=r).distances(src), exact) for r in (0, 1, 2)]
+    assert rel[2].mean() <= 0.01 and rel[2].max() <= 0.03, (rel[2].mean(), rel[2].max())
+    # each level lowers the mean, the 99th percentile and the largest error
+    for a, b in zip(rel, rel[1:]):
+        for q in (np.mean, lambda x: np.percentile(x, 99), np.max):
+            assert q(b) < q(a)
+
+
+def test_subdivide_keeps_the_surface():
+    from gromov.mesh import Mesh
+
+    for v, f in (_sheared_sheet(), (np.asarray(icosphere(2).vertices), np.asarray(icosphere(2).faces))):
+        m = Mesh(v, f)
+        V, F = subdivide(v, f)
+        r = Mesh(V, F)
+        n_edges = len(np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1), axis=0))
+        assert (r.n_vertices, r.n_faces) == (m.n_vertices + n_edges, 4 * m.n_faces)
+        np.testing.assert_array_equal(V[: len(v)], v)  # input vertices first, unchanged
+        assert r.euler_characteristic == m.euler_characteristic
+        assert len(r.boundary_loops) == len(m.boundary_loops)
+        np.testing.assert_allclose(r.area, m.area, rtol=1e-12)
+        # same orientation: every child face has the normal of its parent
+        nrm = lambda V, F: np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])  # noqa: E731
+        assert (np.einsum("ij,ij->i", nrm(V, F), np.tile(nrm(v, f), (4, 1))) > 0).all()
+        # the angle sum at each input vertex is unchanged; midpoints are flat (2 pi inside)
+        ang = lambda FL: np.arccos(np.clip((FL[:, [1, 2, 0]] ** 2 + FL[:, [2, 0, 1]] ** 2 - FL ** 2)  # noqa: E731
+                                           / (2 * FL[:, [1, 2, 0]] * FL[:, [2, 0, 1]]), -1, 1))
+        th, TH = np.zeros(len(v)), np.zeros(len(V))
+        np.add.at(th, f, ang(_face_lengths(v, f)))
+        np.add.at(TH, F, ang(_face_lengths(V, F)))
+        np.testing.assert_allclose(TH[: len(v)], th, atol=1e-9)
+        rim = np.concatenate(r.boundary_loops) if r.boundary_loops else np.zeros(0, int)
+        inner = np.setdiff1d(np.arange(len(v), len(V)), rim)
+        assert len(inner) > 0.5 * (len(V) - len(v))
+        np.testing.assert_allclose(TH[inner], 2 * np.pi, atol=1e-9)
+
+
+def test_refine_keeps_flat_sheets_exact_and_refers_to_input_vertices():
+    v, f = _sheared_sheet()
+    fm = FastMarching(v, f, refine=1)
+    assert fm.n_vertices == len(v) and "refine=1" in repr(fm)
+    D = fm.pairwise()
+    assert D.shape == (len(v), len(v))
+    exact = np.linalg.norm(v[:, None] - v[None], axis=-1)
+    assert _rel_err(D, exact).max() < 1e-9
+    src = np.arange(0, len(v), 37)
+    rows = fm.distances(src)
+    np.testing.assert_array_equal(rows, fm.distances(src, parallel=False))
+    np.testing.assert_array_equal(fm.distance(src[:1]), rows[0])
+    np.testing.assert_allclose(fm.distance(src), rows.min(axis=0), atol=1e-9)
+
+
+def test_refine_lowers_the_error_on_a_sphere(sphere4):
+    v, f = sphere4
+    src = np.arange(0, len(v), 97)
+    G = np.arccos(np.clip(v[src] @ v.T, -1.0, 1.0))
+    e0 = _rel_err(FastMarching(v, f).distances(src), G)
+    e1 = _rel_err(FastMarching(v, f, refine=1).distances(src), G)
+    assert e1.mean() < 0.7 * e0.mean() and e1.max() < e0.max()
+
+
+@pytest.mark.parametrize("bad", [-1, 4, 1.5, True, "1"])
+def test_bad_refine_raises(bad):
+    from gromov.metrics import GeodesicSolver
+
+    m = icosphere(1)
+    with pytest.raises(ValueError, match=r"refine must be an integer in \[0, 3\]"):
+        FastMarching(m.vertices, m.faces, refine=bad)
+    with pytest.raises(ValueError, match="refine must be an integer"):
+        GeodesicSolver(m, refine=bad)
+
+
+def test_refine_only_for_fast_marching():
+    from gromov.metrics import GeodesicSolver
+
+    with pytest.raises(ValueError, match="refine applies to method='fmm'"):
+        GeodesicSolver(icosphere(1), method="dijkstra", refine=1)
 
 
 def _delaunay(v, f):

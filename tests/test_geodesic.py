@@ -94,7 +94,8 @@ def test_errors():
 def test_tosca_cat_fast_marching_against_exact(cat_working):
     """Fast marching vs exact MMP on the 3,000-vertex cat: mean relative error below 1%.
 
-    The issue's second target, max <= 3%, is NOT met on this mesh: a few pairs where fronts
+    The issue's second target, max <= 3%, is NOT met by the default marching on this mesh
+    (it is with ``refine=2``: test_fmm.py's test_refined_marching_...): a few pairs where fronts
     from both sides of a strongly curved vertex meet reach 3-6% (measured: mean 0.21%, 99th
     percentile 0.81%, max 3.4% from these 12 sources; 4.2-6.1% with 20-40 other sources;
     before the intrinsic Delaunay flips and the consistency test of the fast marching:
