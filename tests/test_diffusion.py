@@ -170,3 +170,30 @@ def test_diffusion_fills_small_holes_by_default():
     for bad in (0, -1.0, True, np.bool_(True), "big", float("inf"), float("nan")):
         with pytest.raises(ValueError, match="fill_holes must be a positive number or None"):
             metric_solver(p.mesh, "diffusion", fill_holes=bad)
+
+
+@pytest.mark.parametrize("n", [1, 2, 63, 64, 65, 200])
+def test_distances_from_gram_is_the_plain_formula(n):
+    # the fused tile kernel gives exactly sqrt(max(|x|^2 + |y|^2 - 2 <x, y>, 0)), symmetrised,
+    # with a zero diagonal, on both the threaded and the one-thread path
+    from numba import get_num_threads, set_num_threads
+
+    from gromov.metrics.diffusion import _distances_from_gram
+
+    psi = np.random.default_rng(n).normal(size=(n, 7))
+    psi[-1] = psi[0]  # two coincident points: a zero that rounding could make negative
+    sq, G = (psi**2).sum(1), psi @ psi.T
+    d = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2.0 * G, 0.0))
+    d = 0.5 * (d + d.T)
+    np.fill_diagonal(d, 0.0)
+    threads = get_num_threads()
+    for t in {1, threads}:
+        set_num_threads(t)
+        try:
+            out = _distances_from_gram(sq, G.copy())
+        finally:
+            set_num_threads(threads)
+        np.testing.assert_array_equal(out, d)
+        assert not out.flags.writeable
+    if n > 1:
+        assert out[0, -1] == 0.0 or out[0, -1] < 1e-7

@@ -306,3 +306,21 @@ def test_interpolated_distances_are_bilinear_in_squared_distances():
     out = pair_distances(vt, at, fixed, D2, F)
     v = F[vt, np.argmax(at, 1)]
     np.testing.assert_allclose(out[:, 7:], D[np.ix_(v, fixed)], rtol=1e-12, atol=1e-12)
+
+
+def test_face_neighbours_pairs_manifold_edges_only():
+    from gromov._gmds_kernel import face_neighbours
+
+    # two triangles sharing edge (1, 2), and a third face on that edge makes it non-manifold
+    f = np.array([[0, 1, 2], [2, 1, 3]])
+    np.testing.assert_array_equal(face_neighbours(f), [[1, -1, -1], [-1, -1, 0]])
+    f3 = np.vstack([f, [1, 2, 4]])
+    assert (face_neighbours(f3) == -1).all()  # three faces on (1, 2): a wall, no pairing
+    # a closed mesh: every face has three neighbours, and the relation is symmetric
+    from gromov.shapes import icosphere
+
+    s = icosphere(2)
+    nb = face_neighbours(s.faces)
+    assert (nb >= 0).all()
+    for k in range(3):
+        assert (nb[nb[:, k]] == np.arange(len(nb))[:, None]).any(1).all()

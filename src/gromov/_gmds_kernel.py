@@ -44,12 +44,10 @@ def face_neighbours(faces: np.ndarray) -> np.ndarray:
     nb = -np.ones((m, 3), np.int64)
     same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1])
     # exactly two faces on an edge: pair them (an edge with 3+ faces is left as a wall)
-    starts = np.flatnonzero(same)
-    for s in starts:
-        if (s > 0 and same[s - 1]) or (s + 1 < len(same) and same[s + 1]):
-            continue
-        nb[owner[s], corner[s]] = owner[s + 1]
-        nb[owner[s + 1], corner[s + 1]] = owner[s]
+    pad = np.r_[False, same, False]
+    s = np.flatnonzero(same & ~pad[:-2] & ~pad[2:])
+    nb[owner[s], corner[s]] = owner[s + 1]
+    nb[owner[s + 1], corner[s + 1]] = owner[s]
     return nb
 
 

@@ -47,6 +47,7 @@ import logging
 
 import numpy as np
 import scipy.sparse as sp
+from numba import get_num_threads, njit, prange
 from scipy.sparse.linalg import eigsh
 from scipy.spatial.distance import cdist
 
@@ -204,15 +205,50 @@ class _SpectralDiffusion(MetricSolver):
 def _distances_from_gram(sq: np.ndarray, gram: np.ndarray) -> np.ndarray:
     """Read-only ``sqrt(max(sq_x + sq_y - 2 gram_xy, 0))``, symmetrised, zero diagonal.
 
-    ``gram`` (overwritten) holds inner products of an embedding and ``sq`` its squared norms.
+    ``gram`` (overwritten, returned) holds inner products of an embedding and ``sq`` its
+    squared norms. One pass over cache-sized tile pairs (:func:`_gram_tiles`) instead of
+    several over the whole matrix; the same values as the NumPy expression
+    ``d = sqrt(max(d2, 0)); (d + d.T) / 2``.
     """
-    d2 = np.subtract(sq[:, None] + sq[None, :], 2.0 * gram, out=gram)
-    np.maximum(d2, 0.0, out=d2)
-    d = np.sqrt(d2, out=d2)
-    d = 0.5 * (d + d.T)
-    np.fill_diagonal(d, 0.0)
-    d.flags.writeable = False
-    return d
+    g = gram if gram.flags.c_contiguous and gram.flags.writeable else np.ascontiguousarray(gram, dtype=np.float64)
+    sq = np.ascontiguousarray(sq, dtype=np.float64)
+    nb = -(-len(g) // _TILE)
+    if get_num_threads() > 1 and nb > 1:  # one thread (forked workers): no threading layer
+        _gram_parallel(sq, g, nb)
+    else:
+        for bi in range(nb):
+            _gram_tiles(sq, g, bi)
+    g.flags.writeable = False
+    return g
+
+
+_TILE = 64
+
+
+@njit(cache=True)
+def _gram_tiles(sq, G, bi):
+    """Rows of tile ``bi`` of :func:`_distances_from_gram`: tile pairs ``(bi, bj >= bi)``."""
+    n = G.shape[0]
+    i0 = bi * _TILE
+    i1 = min(n, i0 + _TILE)
+    for j0 in range(i0, n, _TILE):
+        j1 = min(n, j0 + _TILE)
+        for i in range(i0, i1):
+            si = sq[i]
+            for j in range(max(j0, i + 1), j1):
+                a = (si + sq[j]) - 2.0 * G[i, j]
+                b = (sq[j] + si) - 2.0 * G[j, i]
+                d = 0.5 * (np.sqrt(max(a, 0.0)) + np.sqrt(max(b, 0.0)))
+                G[i, j] = d
+                G[j, i] = d
+    for i in range(i0, i1):
+        G[i, i] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def _gram_parallel(sq, G, nb):
+    for bi in prange(nb):
+        _gram_tiles(sq, G, bi)
 
 
 def _eigsh_top(a, k, *, M=None, sigma):
