@@ -171,14 +171,19 @@ def test_directions_are_exact_on_a_flat_irregular_sheet():
     assert checked > 2 * n
 
 
-def test_cat_working_mesh_against_exact_geodesics(cat_working):
+def _cat_and_exact(cat_working, n_sources):
+    """Working cat ``(v, f)``, ``n_sources`` random sources (seed 0) and exact MMP distances."""
     pytest.importorskip("pygeodesic.geodesic")
     from gromov.metrics import GeodesicSolver
 
     w = cat_working.mesh
-    src = np.random.default_rng(0).choice(w.n_vertices, 12, replace=False)
+    src = np.random.default_rng(0).choice(w.n_vertices, n_sources, replace=False)
     exact = GeodesicSolver(w, method="exact").from_sources(src)
-    v, f = np.asarray(w.vertices), np.asarray(w.faces)
+    return np.asarray(w.vertices), np.asarray(w.faces), src, exact
+
+
+def test_cat_working_mesh_against_exact_geodesics(cat_working):
+    v, f, src, exact = _cat_and_exact(cat_working, 12)
     rel = _rel_err(FastMarching(v, f).distances(src), exact)
     rel_plain = _rel_err(FastMarching(v, f, _update="source").distances(src), exact)
     # 0.198%, 0.82%, 3.4% when written (0.38%, 1.04%, 4.8% without directions; 0.20%,
@@ -197,13 +202,7 @@ def test_refined_marching_on_the_cat_is_within_3_percent(cat_working):
     # cat) with the fast marching run on the twice-subdivided mesh; 100 random sources,
     # not the 12 above. Measured when written, max / p99 / mean: refine 0 -- 7.89% /
     # 1.00% / 0.209%; 1 -- 3.69% / 0.55% / 0.113%; 2 -- 1.74% / 0.33% / 0.066%.
-    pytest.importorskip("pygeodesic.geodesic")
-    from gromov.metrics import GeodesicSolver
-
-    w = cat_working.mesh
-    src = np.random.default_rng(0).choice(w.n_vertices, 100, replace=False)
-    exact = GeodesicSolver(w, method="exact").from_sources(src)
-    v, f = np.asarray(w.vertices), np.asarray(w.faces)
+    v, f, src, exact = _cat_and_exact(cat_working, 100)
     rel = [_rel_err(FastMarching(v, f, refine=r).distances(src), exact) for r in (0, 1, 2)]
     assert rel[2].mean() <= 0.01 and rel[2].max() <= 0.03, (rel[2].mean(), rel[2].max())
     # each level lowers the mean, the 99th percentile and the largest error
