@@ -191,6 +191,25 @@ def test_perturb_writes_mesh_and_ground_truth(tmp_path, capsys):
     assert "--join applies to weld" in capsys.readouterr().err
 
 
+def test_refine_option(tmp_path):
+    from gromov.metrics import GeodesicSolver
+
+    src = tmp_path / "s.off"
+    gromov.save(icosphere(2), src)
+    out = tmp_path / "d.npz"
+    assert main(["distances", str(src), "--metric", "geodesic", "--refine", "1", "--samples", "20",
+                 "--out", str(out), "-q"]) == 0
+    z = np.load(out)
+    assert json.loads(str(z["options"])) == {"refine": 1}
+    mesh = gromov.load(src)
+    s = mesh.from_input_ids(z["samples"])
+    fine = GeodesicSolver(mesh, refine=1).submatrix(s)
+    np.testing.assert_allclose(z["distances"], fine, rtol=1e-12)
+    assert np.abs(GeodesicSolver(mesh).submatrix(s) - fine).max() > 1e-6  # it did refine
+    # --refine 0 is the default, with any metric
+    assert main(["distances", str(src), "--metric", "diffusion", "--refine", "0", "--out", str(out), "-q"]) == 0
+
+
 def test_fill_holes_option(tmp_path, capsys):
     from gromov.perturb import holes
 

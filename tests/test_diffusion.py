@@ -195,5 +195,16 @@ def test_distances_from_gram_is_the_plain_formula(n):
             set_num_threads(threads)
         np.testing.assert_array_equal(out, d)
         assert not out.flags.writeable
-    if n > 1:
-        assert out[0, -1] == 0.0 or out[0, -1] < 1e-7
+    # a gram it may not overwrite (Fortran-ordered, read-only) or of another type is copied
+    # as float64 first: the same result, the input untouched
+    ro = G.copy()
+    ro.flags.writeable = False
+    for g in ([np.asfortranarray(G)] if n > 1 else []) + [ro]:  # (1, 1) is C-ordered too
+        before = g.copy()
+        np.testing.assert_array_equal(_distances_from_gram(sq, g), d)
+        np.testing.assert_array_equal(g, before)
+    gi = np.round(G * 8.0).astype(np.int64)
+    expect = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2.0 * gi, 0.0))
+    expect = 0.5 * (expect + expect.T)
+    np.fill_diagonal(expect, 0.0)
+    np.testing.assert_array_equal(_distances_from_gram(sq, gi), expect)

@@ -264,6 +264,21 @@ def test_refine_lowers_the_error_on_a_sphere(sphere4):
     assert e1.mean() < 0.7 * e0.mean() and e1.max() < e0.max()
 
 
+def test_refine_keeps_components_apart_and_unreferenced_vertices_unreached():
+    a, b = grid(6, 5), grid(5, 4)
+    v = np.vstack([a.vertices, b.vertices + [0.0, 0.0, 3.0], [[9.0, 9.0, 9.0]]])
+    f = np.vstack([a.faces, b.faces + a.n_vertices])
+    na, n = a.n_vertices, len(v)
+    for r in (0, 1, 2):
+        D = FastMarching(v, f, refine=r).distances([0, na, n - 1])
+        assert D.shape == (3, n)
+        assert np.isfinite(D[0, :na]).all() and np.isinf(D[0, na:]).all()
+        assert np.isfinite(D[1, na:-1]).all() and np.isinf(D[1, :na]).all() and np.isinf(D[1, -1])
+        assert D[2, -1] == 0.0 and np.isinf(D[2, :-1]).all()
+        # flat pieces: exact straight-line distances within each
+        np.testing.assert_allclose(D[0, :na], np.linalg.norm(v[:na] - v[0], axis=1), atol=1e-9)
+
+
 @pytest.mark.parametrize("bad", [-1, 4, 1.5, True, "1"])
 def test_bad_refine_raises(bad):
     from gromov.metrics import GeodesicSolver

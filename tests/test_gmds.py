@@ -316,6 +316,21 @@ def test_face_neighbours_pairs_manifold_edges_only():
     np.testing.assert_array_equal(face_neighbours(f), [[1, -1, -1], [-1, -1, 0]])
     f3 = np.vstack([f, [1, 2, 4]])
     assert (face_neighbours(f3) == -1).all()  # three faces on (1, 2): a wall, no pairing
+    # against the plain definition on random faces with runs of 2, 3 and 4 faces per edge
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        f = rng.integers(0, 7, size=(rng.integers(1, 40), 3))
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        expect = -np.ones((len(f), 3), np.int64)
+        key = lambda a, b: (min(a, b), max(a, b))  # noqa: E731
+        for i in range(len(f)):
+            for k in range(3):
+                e = key(f[i, (k + 1) % 3], f[i, (k + 2) % 3])
+                on = [(j, c) for j in range(len(f)) for c in range(3)
+                      if key(f[j, (c + 1) % 3], f[j, (c + 2) % 3]) == e]
+                if len(on) == 2:
+                    expect[i, k] = [j for j, _ in on if (j, _) != (i, k)][0]
+        np.testing.assert_array_equal(face_neighbours(f), expect)
     # a closed mesh: every face has three neighbours, and the relation is symmetric
     from gromov.shapes import icosphere
 

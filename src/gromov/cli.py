@@ -42,7 +42,7 @@ def _positive_int(text: str) -> int:
 def _metric_options(args) -> dict:
     if args.metric != "diffusion" and getattr(args, "fill_holes", None) is not None:
         raise _UserError("--fill-holes applies to --metric diffusion")
-    refine = getattr(args, "refine", None)
+    refine = getattr(args, "refine", None) or None  # 0: the default, as if not given
     if refine is not None and (args.metric != "geodesic" or args.geodesic_method not in (None, "fmm")):
         raise _UserError("--refine applies to --metric geodesic with the fast marching (fmm)")
     if args.metric == "geodesic":

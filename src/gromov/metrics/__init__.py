@@ -26,6 +26,7 @@ from .diffusion import (
     diffusion_operator,
 )
 from .euclidean import EuclideanSolver
+from ._fmm import subdivide
 from .geodesic import GEODESIC_METHODS, GeodesicSolver
 
 __all__ = [
@@ -33,7 +34,7 @@ __all__ = [
     "distance_matrix", "check_sources",
     "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "EuclideanSolver",
     "GEODESIC_METHODS", "DIFFUSION_KERNELS", "affinity", "diffusion_operator",
-    "brute_force_diffusion_distance", "cotan_laplacian",
+    "brute_force_diffusion_distance", "cotan_laplacian", "subdivide",
 ]
 
 METRICS = ("geodesic", "diffusion", "euclidean")
@@ -52,7 +53,7 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
     metric : {"geodesic", "diffusion", "euclidean"}
     **options
         Passed to the solver. ``geodesic``: ``method`` ("fmm", "heat", "exact",
-        "dijkstra"), ``k``. ``diffusion``: ``kernel`` ("connectivity" -- the paper's --,
+        "dijkstra"), ``k``, ``refine`` (fast marching on a subdivided copy, more accurate). ``diffusion``: ``kernel`` ("connectivity" -- the paper's --,
         "gaussian", "heat" for the resolution-independent Laplace-Beltrami heat kernel, or
         "biharmonic" for the heat-kernel distance integrated over all times),
         then ``m``, ``density_normalize``, ``sigma``, ``k`` (graph kernels) or ``tau``,

@@ -204,7 +204,8 @@ a smaller region; the errors left above, which no local update removes, shrink w
 it. On the 3,000-vertex simplified TOSCA shapes against exact geodesics (100 random
 sources; max / mean relative error): cat 7.9% / 0.21% -> 3.7% / 0.11% (``k = 1``) ->
 1.7% / 0.066% (``k = 2``); dog 8.3% -> 2.9% -> 1.7%; david 9.1% -> 4.1% -> 3.2%; horse
-8.1% -> 2.7% -> 1.9%, for about 4 and 19 times the all-pairs time. Refining only near
+8.1% -> 2.7% -> 1.9%, for about 5 and 23 times the all-pairs time (cat, 2 cores:
+1.9 / 9.5 / 43 s, ``benchmarks/bench_foundation.py``). Refining only near
 the curved vertices (|total angle - 2 pi| > 0.15-0.3) or only the long edges helped
 less per added vertex (cat, 100 sources: max 7.9% and 4.4-4.6% at 4,200-6,700 marched
 vertices). A virtual-source fit relative to a saddle vertex acting as a pseudo-source
@@ -308,7 +309,8 @@ def subdivide(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.n
     -----
     The midpoints lie on the edges, so the polyhedral surface, and with it every exact
     geodesic distance between input vertices, is unchanged; each new vertex has a total
-    angle of ``2 pi`` on an interior edge (``pi`` on a boundary edge).
+    angle of ``2 pi`` on an interior edge (``pi`` on a boundary edge, ``k pi`` on a
+    non-manifold edge of ``k`` faces, which gets one midpoint shared by all of them).
     """
     V = np.asarray(vertices, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)

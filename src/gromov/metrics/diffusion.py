@@ -205,12 +205,15 @@ class _SpectralDiffusion(MetricSolver):
 def _distances_from_gram(sq: np.ndarray, gram: np.ndarray) -> np.ndarray:
     """Read-only ``sqrt(max(sq_x + sq_y - 2 gram_xy, 0))``, symmetrised, zero diagonal.
 
-    ``gram`` (overwritten, returned) holds inner products of an embedding and ``sq`` its
-    squared norms. One pass over cache-sized tile pairs (:func:`_gram_tiles`) instead of
-    several over the whole matrix; the same values as the NumPy expression
-    ``d = sqrt(max(d2, 0)); (d + d.T) / 2``.
+    ``gram`` holds inner products of an embedding and ``sq`` its squared norms; a writable,
+    C-ordered float64 ``gram`` is overwritten and returned, anything else is copied first.
+    One pass over cache-sized tile pairs (:func:`_gram_tiles`) instead of several over the
+    whole matrix; the same values as the NumPy expression ``d = sqrt(max(d2, 0)); (d + d.T)
+    / 2``. With more than one numba thread the tiles run in parallel; with one (the forked
+    workers of :mod:`gromov.experiments.pairwise`) numba's threading layer is not entered.
     """
-    g = gram if gram.flags.c_contiguous and gram.flags.writeable else np.ascontiguousarray(gram, dtype=np.float64)
+    own = gram.dtype == np.float64 and gram.flags.c_contiguous and gram.flags.writeable
+    g = gram if own else np.array(gram, dtype=np.float64, order="C")
     sq = np.ascontiguousarray(sq, dtype=np.float64)
     nb = -(-len(g) // _TILE)
     if get_num_threads() > 1 and nb > 1:  # one thread (forked workers): no threading layer

@@ -47,13 +47,13 @@ class GeodesicSolver(MetricSolver):
         Time step factor of the heat method (potpourri3d's ``t_coef``).
     refine : int, default 0
         ``"fmm"`` only: march on the mesh with every triangle split into 4 this many times
-        (:func:`gromov.metrics._fmm.subdivide`: the same surface, about ``4**refine`` times
+        (:func:`gromov.metrics.subdivide`: the same surface, about ``4**refine`` times
         the vertices), distances read at the input vertices. The fast marching's error is
         first order in the edge length and largest next to strongly curved vertices, which
         keep their curvature but get nearer flat neighbours. Measured on the 3,000-vertex
         TOSCA cat against exact geodesics from 100 random sources (max / mean relative
-        error, all-pairs time on 2 cores): 0 -- 7.9% / 0.21%, 2.1 s; 1 -- 3.7% / 0.11%,
-        8.8 s; 2 -- 1.7% / 0.066%, 40 s.
+        error; all-pairs time on 2 cores, ``benchmarks/bench_foundation.py`` of 2026-11-24):
+        0 -- 7.9% / 0.21%, 1.9 s; 1 -- 3.7% / 0.11%, 9.5 s; 2 -- 1.7% / 0.066%, 43 s.
 
     Examples
     --------
