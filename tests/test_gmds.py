@@ -129,6 +129,36 @@ def test_search_on_a_vertex_subset_then_polished_on_all_vertices():
     assert r.relative_distance < 1e-3
 
 
+def test_all_starts_contain_the_chosen_one():
+    """greedy_init(all_starts=True) lists every extended start; the default answer is the first
+    of the lowest cost among them. initial_pairs gives match's two pairs, or one per start."""
+    from gromov.gh import greedy_init, initial_pairs
+
+    x = torus(24, 10)
+    y = Mesh(x.vertices * [1.0, 1.0, 1.3], x.faces)  # stretched: not an isometry, costs differ
+    sx, sy = ShapeMetric(x, "geodesic", resolution=None), ShapeMetric(y, "geodesic", resolution=None)
+    P, Q = sx.samples(30, 0), sy.samples(30, 0)
+    dx = sx.distances[np.ix_(P, P)]
+    cand = np.arange(0, y.n_vertices, 9)
+    for domain in (None, sy.samples(80, 0)):
+        every = greedy_init(dx, sy.distances, cand, stages=[(8, None), (12, sy.subset(100))], n_extend=6,
+                            domain=domain, all_starts=True)
+        assert len(every) == 6
+        for img, cost in every:
+            assert cost == pytest.approx(((dx - sy.distances[np.ix_(img, img)]) ** 2).sum())
+        best = greedy_init(dx, sy.distances, cand, stages=[(8, None), (12, sy.subset(100))], n_extend=6,
+                           domain=domain)
+        if domain is None:
+            np.testing.assert_array_equal(best, every[int(np.argmin([c for _, c in every]))][0])
+        else:  # the start chosen on the domain, polished: one of the polished starts
+            assert any(np.array_equal(best, img) for img, _ in every)
+    two = initial_pairs(sx, sy, P, Q, n_extend=4)
+    many = initial_pairs(sx, sy, P, Q, n_extend=4, all_starts=True)
+    assert len(two) == 2 and len(many) == 8
+    for pair in two:  # match's pairs are among all of them
+        assert any(np.array_equal(pair[0], a) and np.array_equal(pair[1], b) for a, b in many)
+
+
 def test_surface_distance_refuses_what_gmds_cannot_use():
     from gromov.errors import MetricError
     from gromov.gmds import SurfaceDistance

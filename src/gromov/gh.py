@@ -214,7 +214,7 @@ class MatchResult:
 # ----------------------------------------------------------------------------- initialisation
 def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
                 stages=((12, None),), n_extend: int = DEFAULT_N_EXTEND,
-                domain: np.ndarray | None = None) -> np.ndarray:
+                domain: np.ndarray | None = None, all_starts: bool = False):
     """Multi-resolution, multi-start initial images (vertex ids on Y) of samples of X.
 
     Coarse stage: for every candidate image of the first sample, place the first ``c``
@@ -230,17 +230,26 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
     vertex sets are then ignored); the candidates are added to it. The best start found there
     is then polished by discrete descent over all vertices of Y. The search's cost is
     proportional to the domain's size.
+
+    Returns the images ``(m,)`` of the best start, or with ``all_starts`` a list of
+    ``(images, summed squared distortion)`` of every extended start, in the order they were
+    extended (without ``domain`` the best is the first of the lowest cost; with it, each
+    start is polished on all vertices, and the best is the one chosen on the domain): for
+    studies of the selection.
     """
     dx_pp = np.ascontiguousarray(dx_pp, dtype=np.float64)
     candidates = np.asarray(candidates, dtype=np.int64)
     restricted = _on_subset(DY, domain, candidates)
     if restricted is not None:
         dom, sub, cand = restricted
-        img = dom[greedy_init(dx_pp, sub, cand, stages=[(c, None) for c, _ in stages], n_extend=n_extend)]
+        found = greedy_init(dx_pp, sub, cand, stages=[(c, None) for c, _ in stages], n_extend=n_extend,
+                            all_starts=all_starts)
         R, C = np.empty((len(dx_pp), len(DY))), np.empty((len(dx_pp), len(DY)))
         DY = np.ascontiguousarray(DY, dtype=np.float64)
         # all images given: no placement, discrete descent over every vertex of Y
-        return _kernel.place_and_descend_blas(dx_pp, DY, img, 20, R, C)[0]
+        if all_starts:
+            return [_kernel.place_and_descend_blas(dx_pp, DY, dom[img], 20, R, C) for img, _ in found]
+        return _kernel.place_and_descend_blas(dx_pp, DY, dom[found], 20, R, C)[0]
     DY = np.ascontiguousarray(DY, dtype=np.float64)
     coarse = []
     for c, vertices in stages:
@@ -256,7 +265,7 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
         coarse.append(sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist())))
     per_stage = -(-int(n_extend) // len(coarse))  # evenly, rounded up
     R, C = np.empty((len(dx_pp), len(DY))), np.empty((len(dx_pp), len(DY)))  # work arrays
-    best, best_cost, seen = None, np.inf, set()
+    best, best_cost, seen, every = None, np.inf, set(), []
     for scored in coarse:
         taken = 0
         for _, coarse_img in scored:
@@ -265,12 +274,13 @@ def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
             seen.add(coarse_img)
             img, cost = _kernel.place_and_descend_blas(dx_pp, DY, np.asarray(coarse_img, dtype=np.int64),
                                                        20, R, C)
+            every.append((img, cost))
             if cost < best_cost:
                 best, best_cost = img, cost
             taken += 1
             if taken >= per_stage:
                 break
-    return best
+    return every if all_starts else best
 
 
 def search_subsets(coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = None) -> list[int]:
@@ -332,6 +342,37 @@ def gw_coupling(dx: np.ndarray, dy: np.ndarray, *, max_iter: int = 1000) -> np.n
     a = np.full(len(dx), 1.0 / len(dx))
     b = np.full(len(dy), 1.0 / len(dy))
     return ot.gromov.gromov_wasserstein(dx, dy, a, b, loss_fun="square_loss", max_iter=max_iter)
+
+
+def initial_pairs(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray, *,
+                  n_starts: int = DEFAULT_N_STARTS, n_extend: int = DEFAULT_N_EXTEND,
+                  coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = DEFAULT_SEARCH_VERTICES,
+                  all_starts: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The two-sided starts of :func:`match`'s GMDS: pairs ``(images of P on Y, images of Q on X)``
+    (working vertex ids).
+
+    :func:`greedy_init` from X to Y, with the images of ``Q`` anchored on it
+    (:func:`anchored_images`), then the same from Y to X: two pairs, or with ``all_starts`` one
+    per extended start of each direction (``n_extend`` forward ones first). The options are
+    :func:`match`'s.
+    """
+    DX, DY = sx.distances, sy.distances
+    dx_pp, dy_qq = DX[np.ix_(P, P)], DY[np.ix_(Q, Q)]
+    cand_y = _candidates(sx.descriptors[P[0]], sy, n_starts)
+    cand_x = _candidates(sy.descriptors[Q[0]], sx, n_starts)
+
+    def search(s):  # (stages, domain): the vertex subsets of the initial search on s
+        if search_vertices is not None:  # one subset for the whole search
+            return [(c, None) for c, _ in coarse_stages], s.subset(search_vertices)
+        return [(c, None if k is None else s.subset(k)) for c, k in coarse_stages], None
+
+    (st_y, dom_y), (st_x, dom_x) = search(sy), search(sx)
+    fwd = greedy_init(dx_pp, DY, cand_y, stages=st_y, n_extend=n_extend, domain=dom_y, all_starts=all_starts)
+    bwd = greedy_init(dy_qq, DX, cand_x, stages=st_x, n_extend=n_extend, domain=dom_x, all_starts=all_starts)
+    fwd = [img for img, _ in fwd] if all_starts else [fwd]
+    bwd = [img for img, _ in bwd] if all_starts else [bwd]
+    return ([(f, anchored_images(DX, P, DY[np.ix_(Q, f)])) for f in fwd]
+            + [(anchored_images(DY, Q, DX[np.ix_(P, b)]), b) for b in bwd])
 
 
 # ----------------------------------------------------------------------------- match
@@ -454,20 +495,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         T = gw_coupling(dx_pp, dy_qq)
         img_p0, img_q0 = Q[np.argmax(T, axis=1)], P[np.argmax(T, axis=0)]
     else:
-        cand_y = _candidates(sx.descriptors[P[0]], sy, n_starts)
-        cand_x = _candidates(sy.descriptors[Q[0]], sx, n_starts)
         # each direction on its own, then the other direction anchored on it; keep the
         # consistent pair with the lower two-sided distortion
-        def search(s):  # (stages, domain): the vertex subsets of the initial search on s
-            if search_vertices is not None:  # one subset for the whole search
-                return [(c, None) for c, _ in coarse_stages], s.subset(search_vertices)
-            return [(c, None if k is None else s.subset(k)) for c, k in coarse_stages], None
-
-        (st_y, dom_y), (st_x, dom_x) = search(sy), search(sx)
-        fwd = greedy_init(dx_pp, DY, cand_y, stages=st_y, n_extend=n_extend, domain=dom_y)
-        bwd = greedy_init(dy_qq, DX, cand_x, stages=st_x, n_extend=n_extend, domain=dom_x)
-        pairs = [(fwd, anchored_images(DX, P, DY[np.ix_(Q, fwd)])),
-                 (anchored_images(DY, Q, DX[np.ix_(P, bwd)]), bwd)]
+        pairs = initial_pairs(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend,
+                              coarse_stages=coarse_stages, search_vertices=search_vertices)
         scores = [gm.distortion(SurfacePoints.at_vertices(sy.mesh, a), SurfacePoints.at_vertices(sx.mesh, b), 2.0)
                   for a, b in pairs]
         img_p0, img_q0 = pairs[int(np.argmin(scores))]
