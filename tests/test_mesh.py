@@ -183,6 +183,8 @@ def test_fill_holes_closes_small_loops_and_keeps_the_vertices():
             fill_holes(holed, bad)
     with pytest.raises(TypeError, match="fill_holes needs a Mesh"):
         fill_holes(PointCloud(np.zeros((3, 3))), 1.0)
+    with pytest.raises(ValueError, match="one per connected component"):
+        fill_holes(holed, [1.0, 2.0])
     # the other orientation: every face flipped, the fans follow
     flipped = Mesh(holed.vertices, holed.faces[:, ::-1])
     closed, k = fill_holes(flipped, 10.0)
@@ -197,3 +199,28 @@ def test_fill_holes_closes_small_loops_and_keeps_the_vertices():
     bowtie = Mesh(ico.vertices, ico.faces[keep])
     assert any(len(np.unique(loop)) < len(loop) for loop in bowtie.boundary_loops)
     assert fill_holes(bowtie, 100.0) == (bowtie, 0)
+
+
+def test_holes_are_small_or_not_relative_to_their_own_component():
+    """A separate small open patch keeps its rim open: the rim is long for the patch's area,
+    though short next to the whole mesh's. A small hole in the big part is filled."""
+    from gromov.mesh import component_areas, fill_holes
+    from gromov.metrics import metric_solver
+    from gromov.perturb import holes
+
+    big = holes(icosphere(4), 1, radius=0.15, seed=0).mesh        # area ~ 4 pi, one small hole
+    patch = grid(5, 5, width=0.3, height=0.3)                    # a 0.3 x 0.3 open square
+    v = np.vstack([big.vertices, np.asarray(patch.vertices) + [3.0, 0.0, 0.0]])
+    two = Mesh(v, np.vstack([big.faces, np.asarray(patch.faces) + big.n_vertices]))
+    areas = component_areas(two)
+    assert two.n_components == 2 and areas.sum() == pytest.approx(two.area)
+    np.testing.assert_allclose(np.sort(areas), [0.09, big.area], rtol=1e-9)
+    rim = [l for l in two.boundary_loops if l.min() >= big.n_vertices][0]
+    rim_length = np.linalg.norm(v[np.roll(rim, -1)] - v[rim], axis=1).sum()      # 1.2
+    assert rim_length < 0.5 * np.sqrt(two.area)            # "small" against the whole mesh ...
+    assert rim_length > 0.5 * np.sqrt(areas.min())          # ... not against its own piece
+    closed, k = fill_holes(two, 0.5 * np.sqrt(areas))
+    assert k == 1 and len(closed.boundary_loops) == 1      # the sphere's hole only
+    # the diffusion metric's default filling judges each loop against its own component
+    s = metric_solver(two, "diffusion")
+    assert s.inner.n_vertices == two.n_vertices + 1

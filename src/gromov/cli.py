@@ -95,8 +95,8 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
     p.add_argument("--fill-holes", type=float, default=None, metavar="F",
-                   help="diffusion: close boundary loops shorter than F * sqrt(area) before computing "
-                        "the metric (default 0.5; 0 leaves holes open)")
+                   help="diffusion: close boundary loops shorter than F * sqrt(area of their "
+                        "component) before computing the metric (default 0.5; 0 leaves holes open)")
 
 
 def _load(path: str):
@@ -432,8 +432,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
     q.add_argument("--fill-holes", type=float, default=None, metavar="F",
-                   help="diffusion: close boundary loops shorter than F * sqrt(area) before computing "
-                        "the metric (default 0.5; 0 leaves holes open)")
+                   help="diffusion: close boundary loops shorter than F * sqrt(area of their "
+                        "component) before computing the metric (default 0.5; 0 leaves holes open)")
     q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")

@@ -24,7 +24,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .errors import GromovWarning, MeshError
 
-__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "as_vertices", "as_faces"]
+__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "component_areas", "as_vertices", "as_faces"]
 
 logger = logging.getLogger(__name__)
 
@@ -517,7 +517,16 @@ def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple
     return Mesh(v, f, input_ids=ids), report
 
 
-def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
+def component_areas(mesh: Mesh) -> np.ndarray:
+    """Surface area of each connected component, ``(mesh.n_components,)`` (0 for an
+    unreferenced vertex), indexed like ``mesh.component_labels``."""
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"component_areas needs a Mesh, got {type(mesh).__name__}")
+    labels = mesh.component_labels[mesh.faces[:, 0]] if mesh.n_faces else np.zeros(0, np.int64)
+    return np.bincount(labels, weights=mesh.face_areas, minlength=mesh.n_components)
+
+
+def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     """Close every boundary loop shorter than ``max_perimeter`` by a fan of triangles.
 
     Each such loop ``(l_0, ..., l_{k-1})`` gets one new vertex ``c`` at the centroid of its
@@ -537,8 +546,10 @@ def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
     Parameters
     ----------
     mesh : Mesh
-    max_perimeter : float
-        Loops whose length (sum of their edge lengths) is below this are filled.
+    max_perimeter : float or array_like, shape (mesh.n_components,)
+        Loops whose length (sum of their edge lengths) is below this are filled; an array
+        gives one bound per connected component (``mesh.component_labels``), e.g. a fraction
+        of the square root of each component's area (:func:`component_areas`).
 
     Returns
     -------
@@ -551,8 +562,16 @@ def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
     """
     if not isinstance(mesh, Mesh):
         raise TypeError(f"fill_holes needs a Mesh, got {type(mesh).__name__}")
-    if not np.isfinite(max_perimeter) or max_perimeter <= 0:
-        raise ValueError(f"max_perimeter must be a positive number, got {max_perimeter!r}")
+    bound = np.asarray(max_perimeter, dtype=float)
+    if bound.ndim == 0:
+        bound = np.full(mesh.n_components, float(bound))
+    if bound.shape != (mesh.n_components,):
+        raise ValueError(f"max_perimeter must be a number or one per connected component "
+                         f"({mesh.n_components}), got shape {bound.shape}")
+    if not (np.isfinite(bound) & (bound > 0)).all():
+        raise ValueError(f"max_perimeter must be a positive number (or one per component), got "
+                         f"{max_perimeter!r}")
+    labels = mesh.component_labels
     V, F = mesh.vertices, mesh.faces
     n = mesh.n_vertices
     # directed edges of the faces: a loop edge (a, b) found here runs along its face's order
@@ -567,7 +586,7 @@ def fill_holes(mesh: Mesh, max_perimeter: float) -> tuple[Mesh, int]:
         # bow-tie vertex) or not closed by boundary edges is left open
         if len(np.unique(loop)) < len(loop) or not all(int(k) in boundary for k in lo * n + hi):
             continue
-        if np.linalg.norm(V[nxt] - V[loop], axis=1).sum() >= max_perimeter:
+        if np.linalg.norm(V[nxt] - V[loop], axis=1).sum() >= bound[labels[loop[0]]]:
             continue
         c = np.full(len(loop), n + len(centres))
         # each fan face runs against the face on the other side of its loop edge

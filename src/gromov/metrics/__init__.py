@@ -13,7 +13,7 @@ import numbers
 
 import numpy as np
 
-from ..mesh import Mesh, fill_holes
+from ..mesh import Mesh, component_areas, fill_holes
 from ._base import MetricSolver, RestrictedSolver, check_sources
 from .diffusion import (
     DIFFUSION_KERNELS,
@@ -59,7 +59,8 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
         then ``m``, ``density_normalize``, ``sigma``, ``k`` (graph kernels) or ``tau``,
         ``laplacian`` (heat kernel), and ``rtol``.
         Every metric on a mesh also takes ``fill_holes`` (float or None): boundary loops
-        shorter than ``fill_holes * sqrt(mesh.area)`` are closed by a fan of triangles
+        shorter than ``fill_holes * sqrt(A)``, ``A`` the area of the connected component that
+        the loop bounds (:func:`gromov.mesh.component_areas`), are closed by a fan of triangles
         (:func:`gromov.mesh.fill_holes`) and the metric is computed on the closed surface,
         reported on the original vertices (:class:`RestrictedSolver`). Default
         :data:`DIFFUSION_FILL_HOLES` (0.5) for ``diffusion``, None (off) for the others.
@@ -83,7 +84,8 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
                              f"open), got {fill!r}")
         fill = float(fill)
         if metric in METRICS and isinstance(shape, Mesh) and shape.boundary_edges.size:
-            closed, n_filled = fill_holes(shape, fill * float(np.sqrt(shape.area)))
+            # per component: a loop is small or not relative to the piece of surface it bounds
+            closed, n_filled = fill_holes(shape, fill * np.sqrt(np.maximum(component_areas(shape), 1e-300)))
             if n_filled:
                 return RestrictedSolver(shape, metric_solver(closed, metric, fill_holes=None, **options))
     if metric == "geodesic":
