@@ -88,6 +88,8 @@ def main(argv=None):
     ap.add_argument("--search-vertices", type=int, default=None, metavar="K",
                     help="restrict GMDS's initial search to K farthest point samples of the target "
                          "(gromov.match's search_vertices; default: the library's)")
+    ap.add_argument("--orientation", choices=("ignore", "prefer"), default=None,
+                    help="gromov.match's orientation option (default: the library's, prefer)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     tosca = TOSCA(Path(args.data) / "tosca")
@@ -115,6 +117,8 @@ def main(argv=None):
                 scale = float(np.median(sy.distances[np.ix_(truth[ok], truth[ok])][~np.eye(ok.sum(), dtype=bool)]
                                         / sx.distances[np.ix_(P[ok], P[ok])][~np.eye(ok.sum(), dtype=bool)]))
                 extra = {} if args.search_vertices is None else {"search_vertices": args.search_vertices}
+                if args.orientation is not None:
+                    extra["orientation"] = args.orientation
                 r = match(sx, sy, metric, n_samples=args.samples, **extra)
                 q = _pair_quality(r, shapes, ref, y)
                 # the match's samples are these same P (ShapeMetric.samples: FPS, seed 0)
@@ -123,7 +127,8 @@ def main(argv=None):
                 row = {"class": cls, "metric": name, "shape": y.label, "kind": _kind(y),
                        "truth_distortion": _distortion(sx.distances, P, sy.distances, truth, diam),
                        "scale": scale, "d_c_c0": q["best"], "d_c_c0_direct": q["direct"],
-                       "found_distortion": _distortion(sx.distances, xs, sy.distances, found, diam)}
+                       "found_distortion": _distortion(sx.distances, xs, sy.distances, found, diam),
+                       "orientation": r.orientation, "branch": q["branch"]}
                 rows.append(row)
             print(f"  {cls:<8} {name:<18} {time.perf_counter() - t:6.1f} s", flush=True)
 
@@ -133,6 +138,7 @@ def main(argv=None):
     for what, key in (("ground-truth distortion (RMS / diameter)", "truth_distortion"),
                       ("median scale d_Y / d_X", "scale"),
                       ("GMDS d(C, C0), best", "d_c_c0"),
+                      ("GMDS d(C, C0), direct (the mirrored map counted as wrong)", "d_c_c0_direct"),
                       ("wrong maps (d(C, C0) > 0.05) / of them with lower distortion than the truth", None)):
         print(f"\n{what}")
         print(f"  {'metric':<18}" + "".join(f"{k:>10}" for k in KINDS))
@@ -155,6 +161,7 @@ def main(argv=None):
         Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "classes": args.classes,
                                                "weld_join": args.weld_join, "fill_holes": args.fill_holes,
                                                "search_vertices": args.search_vertices,
+                                               "orientation": args.orientation,
                                                "samples": args.samples, "summary": summary, "rows": rows},
                                               indent=1))
 

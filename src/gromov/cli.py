@@ -223,7 +223,8 @@ def cmd_match(args) -> int:
             s.distances
             bar.update(1)
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
-              solver=args.solver, seed=args.seed, search_vertices=args.search_vertices)
+              solver=args.solver, seed=args.seed, search_vertices=args.search_vertices,
+              orientation=args.orientation)
     if args.out:
         out = Path(args.out)
         if out.parent and not out.parent.exists():
@@ -238,6 +239,10 @@ def cmd_match(args) -> int:
         print(f"  distortion: {r.norm} {r.distortion:.6g}, rms {r.distortion_l2:.6g}, "
               f"max {r.distortion_linf:.6g}; {r.n_iter} iterations, "
               f"{'converged' if r.converged else 'not converged'}, {r.seconds:.2f} s")
+        if np.isfinite(r.orientation):
+            kind = ("keeps the orientation" if r.orientation > 0.5 else
+                    "reverses the orientation (a mirror image)")
+            print(f"  the map {kind}: {r.orientation:.0%} of small sample triangles keep their sense of rotation")
     return 0
 
 
@@ -397,6 +402,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--search-vertices", type=_positive_int, default=None, metavar="K",
                    help="faster, less reliable on welded shapes: run GMDS's initial search on K "
                         "farthest point samples of each shape (e.g. 500; default: all vertices)")
+    q.add_argument("--orientation", choices=("prefer", "ignore"), default="prefer",
+                   help="prefer (default): among near-optimal maps, one that keeps the surfaces' "
+                        "orientation rather than a mirror image; ignore: the lowest distortion found")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")

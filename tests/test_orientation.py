@@ -1,0 +1,114 @@
+"""Orientation of correspondences: coherent winding, outward normals, the agreement measure,
+and ``match(..., orientation="prefer")``."""
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov import Mesh, match
+from gromov.evaluate import correspondence_error
+from gromov.experiments.reproduce import reflection_map
+from gromov.gh import ShapeMetric
+from gromov.orientation import (coherent_faces, is_consistently_oriented, orientation_agreement,
+                                outward_normals)
+from gromov.shapes import grid, icosphere
+
+
+def _ellipsoid():
+    s = icosphere(3)
+    return Mesh(s.vertices * [1.0, 1.7, 2.6] + [0.3, -0.2, 0.5], s.faces)
+
+
+def test_coherent_faces_rewinds_flipped_faces():
+    e = _ellipsoid()
+    assert is_consistently_oriented(e)
+    f = np.array(e.faces)
+    flipped = np.r_[3, 17, 18, 200]
+    f[flipped] = f[flipped][:, ::-1]
+    bad = Mesh(e.vertices, f)
+    assert not is_consistently_oriented(bad)
+    faces, ok = coherent_faces(bad)
+    assert ok and is_consistently_oriented(Mesh(e.vertices, faces))
+    # the majority winding of the piece may lose; each face is either all kept or all flipped
+    same = np.all(faces == e.faces, axis=1)
+    assert same.all() or (~same).all()
+
+
+def test_outward_normals_point_out_whatever_the_winding():
+    e = _ellipsoid()
+    centre = e.vertices.mean(axis=0)
+    for faces in (e.faces, e.faces[:, ::-1]):
+        n, ok = outward_normals(Mesh(e.vertices, faces))
+        assert ok
+        assert np.all(np.einsum("ij,ij->i", n, e.vertices - centre) > 0)
+        np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0)
+    # an open flat sheet encloses nothing: its faces' own winding decides
+    g = grid(11, 6)
+    for faces, sign in ((g.faces, 1.0), (g.faces[:, ::-1], -1.0)):
+        n, ok = outward_normals(Mesh(g.vertices, faces))
+        fn = Mesh(g.vertices, faces).face_normals[0]
+        assert ok and np.all(sign * n @ g.face_normals[0] > 0.99) and np.all(n @ fn > 0.99)
+
+
+def test_agreement_is_one_for_rigid_maps_and_zero_for_mirrors():
+    e = _ellipsoid()
+    idx = gromov.farthest_point_sampling(np.linalg.norm(e.vertices[:, None] - e.vertices[None], axis=-1),
+                                         40, seed=0).indices
+    x, (n, _) = e.vertices[idx], outward_normals(e)
+    dx = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    rot = np.linalg.qr(np.random.default_rng(1).normal(size=(3, 3)))[0]
+    rot *= np.sign(np.linalg.det(rot))  # a rotation
+    moved = Mesh(e.vertices @ rot.T + 5.0, e.faces)
+    nm, _ = outward_normals(moved)
+    assert orientation_agreement(x, n[idx], dx, moved.vertices[idx], nm[idx]) == 1.0
+    # a reflection, with the faces re-wound so that the mirror image is outward-oriented too
+    mirror = Mesh(e.vertices * [-1.0, 1.0, 1.0], e.faces[:, ::-1])
+    nr, _ = outward_normals(mirror)
+    assert orientation_agreement(x, n[idx], dx, mirror.vertices[idx], nr[idx]) == 0.0
+    # a scrambled map keeps about half
+    perm = np.random.default_rng(2).permutation(len(idx))
+    a = orientation_agreement(x, n[idx], dx, moved.vertices[idx][perm], nm[idx][perm])
+    assert 0.3 < a < 0.7
+
+
+def test_prefer_warns_and_ignores_on_a_non_orientable_mesh():
+    # a Moebius strip: a 12 x 2 grid of quads whose ends are glued with a half twist
+    nu = 12
+    t = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    w = np.array([-0.3, 0.3])
+    ang = t[:, None] / 2
+    pts = np.stack([(1 + w * np.cos(ang)) * np.cos(t)[:, None], (1 + w * np.cos(ang)) * np.sin(t)[:, None],
+                    w * np.sin(ang) + 0 * t[:, None]], axis=-1).reshape(-1, 3)
+    faces = []
+    for i in range(nu):
+        a0, a1 = 2 * i, 2 * i + 1
+        if i < nu - 1:
+            b0, b1 = 2 * i + 2, 2 * i + 3
+        else:
+            b0, b1 = 1, 0  # the half twist
+        faces += [[a0, b0, a1], [a1, b0, b1]]
+    strip = Mesh(pts, np.array(faces))
+    assert not outward_normals(strip)[1]
+    s = ShapeMetric(strip, "euclidean", resolution=None)
+    with pytest.warns(gromov.GromovWarning, match="orientable"):
+        r = match(s, s, "euclidean", n_samples=8, resolution=None, orientation="prefer")
+    assert np.isnan(r.orientation)
+    with pytest.raises(ValueError, match="orientation"):
+        match(s, s, "euclidean", n_samples=8, orientation="sideways")
+
+
+def test_prefer_returns_the_direct_map_on_the_tosca_cat(data_dir):
+    """cat0 -> cat1 with the geodesic metric: the lowest-distortion map found is the mirrored
+    one (README, Matching); ``orientation="prefer"`` (the default) returns the direct one, with
+    about the same distortion, and says so."""
+    x = ShapeMetric(gromov.load(data_dir / "tosca" / "cat0.off.gz"), "geodesic")
+    y = ShapeMetric(gromov.load(data_dir / "tosca" / "cat1.off.gz"), "geodesic")
+    mirror = reflection_map(x.input)
+    plain = match(x, y, "geodesic", orientation="ignore")
+    kept = match(x, y, "geodesic")  # orientation="prefer", the default
+    e_plain = correspondence_error(plain, y, symmetry=mirror)
+    e_kept = correspondence_error(kept, y, symmetry=mirror)
+    assert e_plain.branch == "mirrored" and plain.orientation < 0.5
+    assert e_kept.branch == "direct" and kept.orientation > 0.5
+    assert e_kept.mean < 0.05 < e_kept.mirrored_mean
+    assert kept.distortion_l2 <= (1 + gromov.gh.ORIENTATION_TOL) * plain.distortion_l2
