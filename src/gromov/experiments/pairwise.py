@@ -25,6 +25,7 @@ logger = logging.getLogger(__name__)
 _SHAPES: list[ShapeMetric] = []   # set before forking workers
 _OPTIONS: dict = {}
 _KEEP: frozenset = frozenset()
+_MATRIX = False                   # gh_matrix: distances with orientation="ignore"
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,8 +44,20 @@ class PairwiseGH:
 
 def _pair(ij):
     i, j = ij
-    r = match(_SHAPES[i], _SHAPES[j], _SHAPES[i].metric, **_OPTIONS)
-    return r.distance, r.relative_distance, (r if (i, j) in _KEEP else None)
+    x, y = _SHAPES[i], _SHAPES[j]
+    if not _MATRIX:
+        r = match(x, y, x.metric, **_OPTIONS)
+        return r.distance, r.relative_distance, r
+    # the GH estimate: the lowest distortion found, mirror images included
+    options = dict(_OPTIONS)
+    orientation = options.pop("orientation", "prefer")
+    r = match(x, y, x.metric, orientation="ignore", **options)
+    full = None
+    if (i, j) in _KEEP:
+        full = r
+        if orientation == "prefer" and not r.orientation > 0.5:  # the same run, then more
+            full = match(x, y, x.metric, orientation="prefer", **options)
+    return r.distance, r.relative_distance, full
 
 
 def _one_thread_per_worker():
@@ -90,15 +103,15 @@ def _subsets(match_options: dict) -> list[int]:
                           match_options.get("search_vertices"))
 
 
-def _run(prepared, pairs, keep, jobs, progress, desc, options):
+def _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=False):
     """``(distance, relative, MatchResult or None)`` per pair, in the order of ``pairs``."""
-    global _SHAPES, _OPTIONS, _KEEP
+    global _SHAPES, _OPTIONS, _KEEP, _MATRIX
     from tqdm import tqdm
 
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     out = []
-    _SHAPES, _OPTIONS, _KEEP = prepared, options, frozenset(keep)
+    _SHAPES, _OPTIONS, _KEEP, _MATRIX = prepared, options, frozenset(keep), matrix
     try:
         with tqdm(total=len(pairs), desc=desc, disable=not progress, leave=False) as bar:
             if jobs > 1 and len(pairs) > 1 and "fork" in mp.get_all_start_methods():
@@ -112,7 +125,7 @@ def _run(prepared, pairs, keep, jobs, progress, desc, options):
                     out.append(_pair(ij))
                     bar.update(1)
     finally:
-        _SHAPES, _OPTIONS, _KEEP = [], {}, frozenset()
+        _SHAPES, _OPTIONS, _KEEP, _MATRIX = [], {}, frozenset(), False
     return out
 
 
@@ -157,16 +170,21 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         Show a progress bar (tqdm) on stderr.
     keep : iterable of (int, int), optional
         Pairs ``(i, j)`` with ``i < j`` whose full :class:`gromov.MatchResult` (the
-        correspondence, not only the distance) is returned in ``results``.
+        correspondence, not only the distance) is returned in ``results``: the result of
+        ``match`` with the given ``orientation`` (default "prefer", the direct map of a
+        symmetric body rather than its mirror image).
     **match_options
-        Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``...).
+        Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``...).
 
     Returns
     -------
     PairwiseGH
-        The diagonal is zero; entry (i, j) is the estimate of ``match(shapes[i], shapes[j])``
-        for i < j, mirrored to (j, i) (GH is symmetric; the two-sided GMDS treats both
-        directions).
+        The diagonal is zero; entry (i, j) is the estimate of ``match(shapes[i], shapes[j],
+        orientation="ignore")`` for i < j, mirrored to (j, i) (GH is symmetric; the two-sided
+        GMDS treats both directions). The distance is the lowest distortion found, a mirror
+        image being as good a correspondence as any: ``orientation`` only decides which map
+        ``results`` holds (where the map found reverses the orientation, ``match`` runs again
+        with ``orientation="prefer"``, whose first steps are the same run).
     """
     shapes = list(shapes)
     if len(shapes) < 2:
@@ -189,7 +207,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     kept = {}
     for (i, j), (d, r, full) in zip(pairs, _run(prepared, pairs, keep, jobs, progress,
                                                   f"{metric} GH pairs",
-                                                  dict(n_samples=n_samples, seed=seed, **match_options))):
+                                                  dict(n_samples=n_samples, seed=seed, **match_options),
+                                                  matrix=True)):
         dist[i, j] = dist[j, i] = d
         rel[i, j] = rel[j, i] = r
         if full is not None:
