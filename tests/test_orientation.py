@@ -112,3 +112,23 @@ def test_prefer_returns_the_direct_map_on_the_tosca_cat(data_dir):
     assert e_kept.branch == "direct" and kept.orientation > 0.5
     assert e_kept.mean < 0.05 < e_kept.mirrored_mean
     assert kept.distortion_l2 <= (1 + gromov.gh.ORIENTATION_TOL) * plain.distortion_l2
+
+
+def test_symmetry_of_an_ellipsoid_is_a_reflection():
+    """With Euclidean distances an ellipsoid's orientation-reversing isometries are its three
+    plane reflections and the point reflection: the map found keeps the distances, reverses
+    the orientation and is an involution."""
+    from gromov.gh import pair_orientation
+    from gromov.gmds import SurfacePoints
+
+    s = ShapeMetric(_ellipsoid(), "euclidean", resolution=None)
+    S = s.symmetry(40, 0)
+    assert S is not None and S.shape == (s.mesh.n_vertices,)
+    D = s.distances
+    P = s.samples(40, 0)
+    err = np.abs(D[np.ix_(S[P], S[P])] - D[np.ix_(P, P)])
+    edge = s.mesh.mean_edge_length
+    assert np.median(err) < 2 * edge
+    assert np.median(D[S[S], np.arange(len(S))]) < 2 * edge
+    at = SurfacePoints.at_vertices(s.mesh, S[P])
+    assert pair_orientation(s, s, P, P, at, at) < 0.2

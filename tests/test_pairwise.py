@@ -70,3 +70,19 @@ def test_prepare_computes_the_search_subsets_once_per_shape():
     assert (40, 0) in s._samples
     np.testing.assert_array_equal(s.subset(40), s._samples[40, 0])
     assert len(s.subset(10**6)) == s.mesh.n_vertices  # capped at the working vertices
+
+
+def test_matrix_holds_the_orientation_free_estimate_and_keep_the_default_map():
+    """The GH estimate counts mirror images as correspondences (orientation="ignore"); a kept
+    pair's map is ``match``'s default (orientation="prefer")."""
+    from gromov import match
+
+    shapes, _ = _sheets()
+    r = gh_matrix(shapes[:3], "geodesic", n_samples=20, resolution=None, keep=[(0, 1), (1, 2)])
+    for i, j in [(0, 1), (0, 2), (1, 2)]:
+        plain = match(shapes[i], shapes[j], "geodesic", n_samples=20, resolution=None, orientation="ignore")
+        assert r.distance[i, j] == plain.distance
+    for i, j in [(0, 1), (1, 2)]:
+        default = match(shapes[i], shapes[j], "geodesic", n_samples=20, resolution=None)
+        np.testing.assert_array_equal(r.results[i, j].x_to_y_vertex, default.x_to_y_vertex)
+        assert r.results[i, j].distance == default.distance

@@ -45,6 +45,12 @@ DEFAULT_SEARCH_VERTICES: int | None = None
 #: ``match(..., orientation="prefer")`` keeps an orientation-preserving correspondence when its
 #: distortion is at most this much (relative) above the best one found.
 ORIENTATION_TOL = 0.1
+#: ... and a map obtained by composing the mirrored one with a reflection of either shape
+#: (:meth:`ShapeMetric.symmetry`) when within this much; chosen on the held-out classes.
+FLIP_TOL = 0.25
+#: :meth:`ShapeMetric.symmetry` accepts a self-map whose RMS distortion is below this fraction of
+#: the diameter.
+SYMMETRY_TOL = 0.05
 
 
 class ShapeMetric:
@@ -88,6 +94,7 @@ class ShapeMetric:
         self._diameter: float | None = None
         self._tree = None
         self._normals: tuple[np.ndarray, bool] | None = None
+        self._symmetry: dict = {}
 
     @property
     def mesh(self) -> Mesh:
@@ -137,6 +144,25 @@ class ShapeMetric:
         if self._normals is None:
             self._normals = outward_normals(self.mesh)
         return self._normals
+
+    def symmetry(self, n_samples: int = 100, seed: int = 0) -> np.ndarray | None:
+        """An intrinsic reflection of the shape: a map of its working vertices to themselves that
+        reverses the orientation and nearly keeps the distances (left hand to right hand), or
+        None when none is found (computed once per ``(n_samples, seed)``).
+
+        Found as :func:`match` finds a correspondence, from the shape to itself among
+        orientation-reversing maps only (the identity is excluded that way): GMDS of the
+        samples from the lowest-distortion reversing start of the initial search (with up to
+        as many more reversing coarse starts per stage as it extends), accepted when it
+        reverses the orientation (agreement < 1/2) and its RMS distortion is below
+        ``SYMMETRY_TOL`` of the diameter; every vertex then goes where its distances to the
+        samples best fit those to the samples' images (:func:`anchored_images`).
+        :func:`match` composes a mirrored correspondence with it to get the direct one.
+        """
+        key = (int(n_samples), int(seed))
+        if key not in self._symmetry:
+            self._symmetry[key] = _self_reflection(self, *key)
+        return self._symmetry[key]
 
     def samples(self, n: int, seed: int = 0) -> np.ndarray:
         """``n`` farthest point samples (working vertex ids), cached per ``(n, seed)``."""
@@ -343,16 +369,18 @@ class _Search:
                       for k, (img, cost) in enumerate(every)])
         return every, best
 
-    def extend_preserving(self, orient, count: int):
+    def extend_preserving(self, orient, count: int, reversing: bool = False):
         """Up to ``count`` more starts per stage: its lowest-cost coarse starts not extended
-        yet whose orientation agreement ``orient(images on Y) > 1/2``; extended and polished."""
+        yet whose orientation agreement ``orient(images on Y) > 1/2`` (``< 1/2`` with
+        ``reversing``); extended and polished."""
         todo = []
         for scored in self.coarse:
             rest = [img for _, img in scored if img not in self.seen]
             if not rest:
                 continue
             ids = np.asarray(rest, dtype=np.int64)
-            keep = orient(ids if self.dom is None else self.dom[ids]) > 0.5
+            agree = orient(ids if self.dom is None else self.dom[ids])
+            keep = agree < 0.5 if reversing else agree > 0.5
             chosen = [img for img, k in zip(rest, keep) if k][:count]
             self.seen.update(chosen)
             todo += chosen
@@ -471,11 +499,36 @@ class _Starts:
             return self._pairs([fwd[bf][0]], [bwd[bb][0]]), (0, 1)
         return self._pairs([i for i, _ in fwd], [i for i, _ in bwd]), (bf, len(fwd) + bb)
 
-    def preserving(self, count: int):
-        """Pairs of up to ``count`` more orientation-preserving starts per stage and direction."""
-        fwd = self.fwd.extend_preserving(_orient(self.sx, self.sy, self.P, self.dx_pp), count)
-        bwd = self.bwd.extend_preserving(_orient(self.sy, self.sx, self.Q, self.dy_qq), count)
+    def preserving(self, count: int, reversing: bool = False):
+        """Pairs of up to ``count`` more orientation-preserving (or reversing) starts per
+        stage and direction."""
+        fwd = self.fwd.extend_preserving(_orient(self.sx, self.sy, self.P, self.dx_pp), count, reversing)
+        bwd = self.bwd.extend_preserving(_orient(self.sy, self.sx, self.Q, self.dy_qq), count, reversing)
         return self._pairs([i for i, _ in fwd], [i for i, _ in bwd])
+
+
+def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray | None:
+    """:meth:`ShapeMetric.symmetry`."""
+    if not s.normals[1] or n_samples > s.mesh.n_vertices:
+        return None
+    P = s.samples(n_samples, seed)
+    search = _Starts(s, s, P, P, n_starts=DEFAULT_N_STARTS, n_extend=DEFAULT_N_EXTEND,
+                     coarse_stages=DEFAULT_COARSE_STAGES, search_vertices=DEFAULT_SEARCH_VERTICES)
+    pairs = search.plain(all_starts=True)[0] + search.preserving(-(-search.fwd.per_stage // 2) * 2,
+                                                                 reversing=True)
+    at = [_at_vertices(s, s, a, b) for a, b in pairs]
+    flips = np.array([pair_orientation(s, s, P, P, a, b) for a, b in at]) < 0.5
+    if not flips.any():
+        return None
+    gm = SymmetricGMDS(s.surface, s.surface, P, P)
+    scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
+    img_p, img_q, _, _ = gm.solve(*at[int(np.flatnonzero(flips)[np.argmin(scores[flips])])])
+    if not (pair_orientation(s, s, P, P, img_p, img_q) < 0.5
+            and gm.distortion(img_p, img_q, 2.0) < SYMMETRY_TOL * s.diameter):
+        return None
+    D = s.distances
+    images = img_p.vertex(s.mesh.faces)
+    return anchored_images(D, images, D[:, P])
 
 
 def _at_vertices(sx, sy, img_p, img_q) -> tuple[SurfacePoints, SurfacePoints]:
@@ -599,7 +652,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         tell apart), run GMDS also from the best orientation-preserving start -- among the
         extended starts and up to half as many more preserving coarse starts per stage -- and
         return that map when its distortion is at most ``ORIENTATION_TOL`` (10%) above the
-        other's (:mod:`gromov.orientation`; ignored with a warning when a working mesh is not
+        other's; failing that, from the mirrored map composed with a reflection of X, then of
+        Y (:meth:`ShapeMetric.symmetry`, found once per shape), kept within ``FLIP_TOL`` (25%)
+        (:mod:`gromov.orientation`; ignored with a warning when a working mesh is not
         orientable). When the first map keeps the orientation, the result is the same as with
         "ignore". Chosen on the held-out classes (``benchmarks/bench_heldout.py
         --orientation``, session 8): d(C, C0) with the mirrored map counted as wrong went
@@ -677,15 +732,35 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         pairs = search.plain(all_starts=True)[0] + search.preserving(-(-search.fwd.per_stage // 2))
         at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
         keep = np.array([pair_orientation(sx, sy, P, Q, a, b) for a, b in at]) > 0.5
-        if keep.any():
-            scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
+        d_first = gm.distortion(img_p, img_q, 2.0)
+
+        def attempt(start, tol_k):
             h0 = len(gm.history)
-            alt = gm.solve(*at[int(np.flatnonzero(keep)[np.argmin(scores[keep])])])
+            alt = gm.solve(*start)
             o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
-            if o_alt > 0.5 and (gm.distortion(alt[0], alt[1], 2.0)
-                                <= (1.0 + ORIENTATION_TOL) * gm.distortion(img_p, img_q, 2.0)):
-                img_p, img_q, n_iter, converged = alt
-                history, orient = gm.history[h0:], o_alt
+            if o_alt > 0.5 and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + tol_k) * d_first:
+                return (*alt, gm.history[h0:], o_alt)
+            return None
+
+        found = None
+        if keep.any():  # the best orientation-preserving start
+            scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
+            found = attempt(at[int(np.flatnonzero(keep)[np.argmin(scores[keep])])], ORIENTATION_TOL)
+        if found is None:  # the mirrored map composed with a reflection of X, then of Y
+            fp, gq = img_p.vertex(sy.mesh.faces), img_q.vertex(sx.mesh.faces)
+            for s_ in (sx, sy):
+                sym = s_.symmetry(n_samples, seed)
+                if sym is None:
+                    continue
+                if s_ is sx:  # f o S_X on P (f carried to S_X(P) by its distances), S_X o g on Q
+                    start = (anchored_images(DY, fp, DX[np.ix_(sym[P], P)]), sym[gq])
+                else:         # S_Y o f on P, g o S_Y on Q
+                    start = (sym[fp], anchored_images(DX, gq, DY[np.ix_(sym[Q], Q)]))
+                found = attempt(_at_vertices(sx, sy, *start), FLIP_TOL)
+                if found is not None:
+                    break
+        if found is not None:
+            img_p, img_q, n_iter, converged, history, orient = found
 
     dx, dy = gm.blocks(img_p, img_q)
     r = (dx - dy)[~np.eye(len(dx), dtype=bool)]
