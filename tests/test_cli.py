@@ -137,6 +137,7 @@ def test_match_json_and_out(tmp_path, capsys):
     assert res["metric"] == "geodesic" and res["solver"] == "gmds" and res["n_samples"] == 20
     assert res["distance"] == pytest.approx(0.5 * res["distortion"]["l2"])
     assert res["relative_distance"] < 0.01  # isometric shapes
+    assert 0.0 <= res["orientation"] <= 1.0  # a fraction of sample triangles (both sheets orientable)
     z = np.load(out)
     for side, other in (("x", "y"), ("y", "x")):
         assert z[f"{side}_samples"].shape == (20,)

@@ -29,6 +29,22 @@ __all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "compon
 logger = logging.getLogger(__name__)
 
 
+def paired_half_edges(u: np.ndarray, v: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The two half-edges ``(h0, h1)`` of every manifold edge.
+
+    ``u[h], v[h]``: the end vertices of half-edge ``h`` (vertex ids below ``n``). An edge is
+    manifold when exactly two half-edges join its two vertices (either way round); boundary
+    and non-manifold edges are left out.
+    """
+    key = np.minimum(u, v).astype(np.int64) * np.int64(n) + np.maximum(u, v)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    count = np.diff(np.r_[start, len(ks)])
+    pair = start[count == 2]
+    return order[pair], order[pair + 1]
+
+
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.array(a, copy=True)
     a.flags.writeable = False

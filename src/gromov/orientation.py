@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import Mesh
+from .mesh import Mesh, paired_half_edges
 
 __all__ = ["is_consistently_oriented", "coherent_faces", "outward_normals", "orientation_agreement",
            "orientation_agreements"]
@@ -65,15 +65,7 @@ def coherent_faces(mesh: Mesh) -> tuple[np.ndarray, bool]:
         return f.copy(), True
     he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     face = np.tile(np.arange(m), 3)
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    key = lo * np.int64(mesh.n_vertices) + hi
-    order = np.argsort(key, kind="stable")
-    k = key[order]
-    # manifold edges: exactly two half-edges with this key
-    start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
-    count = np.diff(np.r_[start, len(k)])
-    pair = start[count == 2]
-    a, b = order[pair], order[pair + 1]
+    a, b = paired_half_edges(he[:, 0], he[:, 1], mesh.n_vertices)  # manifold edges
     same = he[a, 0] == he[b, 0]  # both traverse the edge the same way: they disagree
     fa, fb = face[a], face[b]
     sign = np.where(same, -1, 1)

@@ -229,6 +229,7 @@ import numpy as np
 from numba import get_num_threads, njit, parallel_chunksize, prange
 
 from ..errors import MetricError
+from ..mesh import paired_half_edges
 
 __all__ = ["FastMarching", "subdivide"]
 
@@ -266,13 +267,7 @@ def _face_adjacency(faces: np.ndarray, n: int) -> np.ndarray:
     m = len(faces)
     u = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
     v = np.concatenate([faces[:, 2], faces[:, 0], faces[:, 1]])
-    key = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
-    count = np.diff(np.r_[start, len(ks)])
-    pair = start[count == 2]
-    h0, h1 = order[pair], order[pair + 1]
+    h0, h1 = paired_half_edges(u, v, n)
     opp = np.full(3 * m, -1, np.int64)
     opp[h0] = h1 % m
     opp[h1] = h0 % m
