@@ -517,7 +517,7 @@ def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray 
     pairs = search.plain(all_starts=True)[0] + search.preserving(-(-search.fwd.per_stage // 2) * 2,
                                                                  reversing=True)
     at = [_at_vertices(s, s, a, b) for a, b in pairs]
-    flips = np.array([pair_orientation(s, s, P, P, a, b) for a, b in at]) < 0.5
+    flips = pairs_orientation(s, s, P, P, at) < 0.5
     if not flips.any():
         return None
     gm = SymmetricGMDS(s.surface, s.surface, P, P)
@@ -555,17 +555,24 @@ def pair_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.
     """Orientation agreement of a two-sided correspondence (the mean of its two directions;
     :func:`gromov.orientation.orientation_agreement`); NaN unless both working meshes are
     orientable."""
+    return float(pairs_orientation(sx, sy, P, Q, [(img_p, img_q)])[0])
+
+
+def pairs_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray,
+                      pairs: list) -> np.ndarray:
+    """:func:`pair_orientation` of several correspondences ``(img_p, img_q)`` of the same
+    samples at once (the samples' neighbour triangles are found once)."""
     (nx, okx), (ny, oky) = sx.normals, sy.normals
     if not (okx and oky):
-        return float("nan")
+        return np.full(len(pairs), np.nan)
     out = []
-    for sa, sb, A, img, nb in ((sx, sy, P, img_p, ny), (sy, sx, Q, img_q, nx)):
-        na = sa.normals[0]
-        pos = img.positions(sb.mesh.vertices, sb.mesh.faces)
-        nrm = np.einsum("kc,kcd->kd", img.bary, nb[sb.mesh.faces[img.face]])
-        out.append(orientation_agreements(sa.mesh.vertices[A], na[A], sa.distances[np.ix_(A, A)],
-                                          pos[None], nrm[None])[0])
-    return float(np.mean(out))
+    for side, (sa, sb, A, nb) in enumerate(((sx, sy, P, ny), (sy, sx, Q, nx))):
+        imgs = [pair[side] for pair in pairs]
+        pos = np.stack([img.positions(sb.mesh.vertices, sb.mesh.faces) for img in imgs])
+        nrm = np.stack([np.einsum("kc,kcd->kd", img.bary, nb[sb.mesh.faces[img.face]]) for img in imgs])
+        out.append(orientation_agreements(sa.mesh.vertices[A], sa.normals[0][A], sa.distances[np.ix_(A, A)],
+                                          pos, nrm))
+    return 0.5 * (out[0] + out[1])
 
 
 # ----------------------------------------------------------------------------- match
@@ -731,7 +738,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         # among the extended starts and more preserving ones; keep it if nearly as good
         pairs = search.plain(all_starts=True)[0] + search.preserving(-(-search.fwd.per_stage // 2))
         at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
-        keep = np.array([pair_orientation(sx, sy, P, Q, a, b) for a, b in at]) > 0.5
+        keep = pairs_orientation(sx, sy, P, Q, at) > 0.5
         d_first = gm.distortion(img_p, img_q, 2.0)
 
         def attempt(start, tol_k):
