@@ -320,7 +320,8 @@ class _Search:
             self.coarse.append(sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist())))
         self.per_stage = -(-int(n_extend) // len(self.coarse))  # evenly, rounded up
         self.seen: set = set()
-        self._R = self._C = self._plain = None
+        self._R = self._C = self._plain = self._full = None
+        self._polished: dict = {}
 
     def _extend(self, coarse_imgs, polish: bool):
         """Extend coarse starts to all samples on ``work`` (and polish them on all of Y)."""
@@ -334,14 +335,18 @@ class _Search:
         return out
 
     def polish(self, img):
-        """``(images on Y, cost)``: discrete descent over all of Y from images on ``work``."""
-        if self.dom is None:
-            raise RuntimeError("nothing to polish: the search ran on all of Y")
-        DY = np.ascontiguousarray(self.DY, dtype=np.float64)
-        n = len(self.dx_pp)
-        R, C = np.empty((n, len(DY))), np.empty((n, len(DY)))
-        # all images given: no placement, discrete descent over every vertex of Y
-        return _kernel.place_and_descend_blas(self.dx_pp, DY, self.dom[img], 20, R, C)
+        """``(images on Y, cost)``: discrete descent over all of Y from images on ``work``
+        (each start once)."""
+        key = tuple(np.asarray(img).tolist())
+        if key not in self._polished:
+            if self._full is None:  # Y and the work arrays of its size, once
+                DY = np.ascontiguousarray(self.DY, dtype=np.float64)
+                n = len(self.dx_pp)
+                self._full = (DY, np.empty((n, len(DY))), np.empty((n, len(DY))))
+            DY, R, C = self._full
+            # all images given: no placement, discrete descent over every vertex of Y
+            self._polished[key] = _kernel.place_and_descend_blas(self.dx_pp, DY, self.dom[img], 20, R, C)
+        return self._polished[key]
 
     def extend_plain(self, polish_all: bool = True):
         """The ``n_extend`` lowest-cost coarse starts (shared out among the stages), extended:
@@ -462,8 +467,7 @@ def initial_pairs(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.nda
     """
     st = _Starts(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend, coarse_stages=coarse_stages,
                  search_vertices=search_vertices)
-    pairs, primary = st.plain(all_starts)
-    return pairs if all_starts else [pairs[i] for i in primary]
+    return st.plain(all_starts)
 
 
 class _Starts:
@@ -491,13 +495,12 @@ class _Starts:
                 + [(anchored_images(DY, Q, DX[np.ix_(P, b)]), b) for b in bwd])
 
     def plain(self, all_starts: bool):
-        """Pairs of the extended starts (all, or only each direction's best) and the
-        positions of the two best ones in that list."""
+        """Pairs of the extended starts: all of them, or each direction's best."""
         fwd, bf = self.fwd.extend_plain(polish_all=all_starts)
         bwd, bb = self.bwd.extend_plain(polish_all=all_starts)
         if not all_starts:
-            return self._pairs([fwd[bf][0]], [bwd[bb][0]]), (0, 1)
-        return self._pairs([i for i, _ in fwd], [i for i, _ in bwd]), (bf, len(fwd) + bb)
+            return self._pairs([fwd[bf][0]], [bwd[bb][0]])
+        return self._pairs([i for i, _ in fwd], [i for i, _ in bwd])
 
     def preserving(self, count: int, reversing: bool = False):
         """Pairs of up to ``count`` more orientation-preserving (or reversing) starts per
@@ -514,7 +517,7 @@ def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray 
     P = s.samples(n_samples, seed)
     search = _Starts(s, s, P, P, n_starts=DEFAULT_N_STARTS, n_extend=DEFAULT_N_EXTEND,
                      coarse_stages=DEFAULT_COARSE_STAGES, search_vertices=DEFAULT_SEARCH_VERTICES)
-    pairs = search.plain(all_starts=True)[0] + search.preserving(-(-search.fwd.per_stage // 2) * 2,
+    pairs = search.plain(all_starts=True) + search.preserving(-(-search.fwd.per_stage // 2) * 2,
                                                                  reversing=True)
     at = [_at_vertices(s, s, a, b) for a, b in pairs]
     flips = pairs_orientation(s, s, P, P, at) < 0.5
@@ -724,7 +727,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         # consistent pair with the lower two-sided distortion
         search = _Starts(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend, coarse_stages=coarse_stages,
                          search_vertices=search_vertices)
-        pairs, _ = search.plain(all_starts=False)
+        pairs = search.plain(all_starts=False)
         scores = [gm.distortion(*_at_vertices(sx, sy, a, b), 2.0) for a, b in pairs]
         img_p0, img_q0 = pairs[int(np.argmin(scores))]
     img_p, img_q = _at_vertices(sx, sy, img_p0, img_q0)
@@ -736,7 +739,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     if prefer and not orient > 0.5:
         # a mirrored (or scrambled) map: GMDS from the best orientation-preserving start too,
         # among the extended starts and more preserving ones; keep it if nearly as good
-        pairs = search.plain(all_starts=True)[0] + search.preserving(-(-search.fwd.per_stage // 2))
+        pairs = search.plain(all_starts=True) + search.preserving(-(-search.fwd.per_stage // 2))
         at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
         keep = pairs_orientation(sx, sy, P, Q, at) > 0.5
         d_first = gm.distortion(img_p, img_q, 2.0)
