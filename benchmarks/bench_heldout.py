@@ -48,6 +48,7 @@ HERE = Path(__file__).resolve().parent
 METRICS = {
     "geodesic": ("geodesic", {}),
     "heat 0.005": ("diffusion", {"kernel": "heat", "tau": 0.005}),
+    "heat 0.005 length": ("diffusion", {"kernel": "heat", "tau": 0.005, "units": "length"}),
     "heat 0.02": ("diffusion", {"kernel": "heat", "tau": 0.02}),
     "biharmonic": ("diffusion", {"kernel": "biharmonic"}),
     "connectivity m=50": ("diffusion", {"kernel": "connectivity"}),

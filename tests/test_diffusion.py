@@ -4,7 +4,7 @@ resolution independence of the heat-kernel variant."""
 import numpy as np
 import pytest
 
-from gromov import MetricError, PointCloud
+from gromov import Mesh, MetricError, PointCloud
 from gromov.metrics import (
     GraphDiffusionSolver,
     HeatDiffusionSolver,
@@ -85,6 +85,34 @@ def test_heat_kernel_converges_under_refinement_graph_kernel_does_not():
     assert g3 > 0.1  # m steps cover a resolution-dependent area
 
 
+def test_heat_distance_in_length_units_is_the_geodesic_distance_below_the_diffusion_radius():
+    # On a plane, sqrt(32 pi) t d_t(x, y) = sqrt(8t) sqrt(1 - exp(-r^2 / 8t)) (HeatDiffusionSolver,
+    # ``units``): about r below the diffusion radius, sqrt(8t) far beyond it. Unit square, the
+    # centre vertex, points within 0.2 of it (the boundary's reflection is below 1e-3 there).
+    m = grid(41, 41, width=1.0, height=1.0)
+    s = HeatDiffusionSolver(m, tau=0.004, units="length")
+    c = 20 * 41 + 20
+    d = s.from_sources([c])[0]
+    r = np.linalg.norm(m.vertices - m.vertices[c], axis=1)
+    plane = np.sqrt(8 * s.t) * np.sqrt(1 - np.exp(-r**2 / (8 * s.t)))
+    near = (r > 0) & (r < 0.2)
+    assert np.abs(d[near] / plane[near] - 1).max() < 0.04   # measured 0.023 (mesh spacing 0.025)
+    short = (r > 0) & (r < 0.3 * np.sqrt(8 * s.t))
+    assert np.abs(d[short] / r[short] - 1).max() < 0.04
+    # the factor is a constant: the raw distance times sqrt(32 pi) t
+    raw = HeatDiffusionSolver(m, tau=0.004)
+    np.testing.assert_allclose(raw.from_sources([c])[0] * np.sqrt(32 * np.pi) * raw.t, d, rtol=1e-9)
+
+
+@pytest.mark.parametrize("units, power", [("raw", -1), ("length", 1)])
+def test_heat_distance_scales_with_the_shape(units, power):
+    # t = tau * area: scaling a shape by s scales d_t by 1/s; in length units by s
+    m = icosphere(2)
+    d1 = HeatDiffusionSolver(m, units=units).pairwise()
+    d3 = HeatDiffusionSolver(Mesh(3.0 * m.vertices, m.faces), units=units).pairwise()
+    np.testing.assert_allclose(d3, 3.0**power * d1, rtol=1e-6, atol=1e-9 * d1.max())
+
+
 def test_robust_and_cotan_laplacians_agree_on_a_good_mesh():
     m = icosphere(3)
     a = HeatDiffusionSolver(m).pairwise()
@@ -117,6 +145,8 @@ def test_errors():
         HeatDiffusionSolver(m, tau=0)
     with pytest.raises(ValueError, match="laplacian must be"):
         HeatDiffusionSolver(m, laplacian="fem")
+    with pytest.raises(ValueError, match="units must be one of"):
+        HeatDiffusionSolver(m, units="metres")
     with pytest.raises(ValueError, match="diffusion kernel must be"):
         metric_solver(m, "diffusion", kernel="nope")
     with pytest.raises(ValueError, match="metric must be one of"):

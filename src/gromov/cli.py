@@ -39,9 +39,23 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _classes(text: str) -> dict:
+    out = {}
+    for item in text.split(","):
+        name, sep, n = item.partition(":")
+        if not sep or not name.strip():
+            raise argparse.ArgumentTypeError(f"expected CLASS:N[,CLASS:N...], got {item!r}")
+        out[name.strip()] = _positive_int(n)
+    if len(out) < 2:
+        raise argparse.ArgumentTypeError(f"recognition needs at least two classes, got {text!r}")
+    return out
+
+
 def _metric_options(args) -> dict:
     if args.metric != "diffusion" and getattr(args, "fill_holes", None) is not None:
         raise _UserError("--fill-holes applies to --metric diffusion")
+    if args.metric != "diffusion" and getattr(args, "units", None) is not None:
+        raise _UserError("--units applies to --metric diffusion")
     refine = getattr(args, "refine", None) or None  # 0: the default, as if not given
     if refine is not None and (args.metric != "geodesic" or args.geodesic_method not in (None, "fmm")):
         raise _UserError("--refine applies to --metric geodesic with the fast marching (fmm)")
@@ -62,6 +76,11 @@ def _diffusion_options(args) -> dict:
         if args.kernel != "heat":
             raise _UserError("--tau is the heat kernel's diffusion time: use it with --kernel heat")
         opts["tau"] = args.tau
+    units = getattr(args, "units", None)
+    if units is not None:
+        if args.kernel != "heat":
+            raise _UserError("--units applies to the heat kernel: use it with --kernel heat")
+        opts["units"] = units
     steps = getattr(args, "steps", None)
     if steps is not None:
         if args.kernel not in ("connectivity", "gaussian"):
@@ -94,6 +113,9 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                    help="diffusion steps m of the graph kernels (default 50)")
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
+    p.add_argument("--units", choices=("raw", "length"), default=None,
+                   help="heat-kernel diffusion distance in units of 1/length (raw) or scaled to "
+                        "the geodesic distance below the diffusion radius (length)")
     p.add_argument("--fill-holes", type=float, default=None, metavar="F",
                    help="diffusion: close boundary loops shorter than F * sqrt(area of their "
                         "component) before computing the metric (default 0.5; 0 leaves holes open)")
@@ -340,7 +362,8 @@ def cmd_reproduce(args) -> int:
     command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
     diffusion = _diffusion_options(args)
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
-                  command=command.strip(), diffusion=diffusion, weld_join=args.weld_join)
+                  command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
+                  classes=args.classes, topkids=not args.no_topkids)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -439,12 +462,20 @@ def build_parser() -> argparse.ArgumentParser:
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
     q.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.005)")
+    q.add_argument("--units", choices=("raw", "length"), default=None,
+                   help="heat-kernel diffusion distance in units of 1/length (raw) or scaled to "
+                        "the geodesic distance below the diffusion radius (length)")
     q.add_argument("--fill-holes", type=float, default=None, metavar="F",
                    help="diffusion: close boundary loops shorter than F * sqrt(area of their "
                         "component) before computing the metric (default 0.5; 0 leaves holes open)")
     q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")
+    q.add_argument("--classes", type=_classes, default=None, metavar="C:N,...",
+                   help="TOSCA classes instead of the paper's, each with its number of deformations "
+                        "in Experiment 1, e.g. wolf:2,horse:4,centaur:5,michael:6 (Experiment 2: "
+                        "up to 2 each)")
+    q.add_argument("--no-topkids", action="store_true", help="skip the TOPKIDS part")
     q.set_defaults(func=cmd_reproduce)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")

@@ -106,8 +106,13 @@ class Settings:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Settings:
+def settings_for(dataset: str, quick: bool = False, *, seed: int = 0, classes: dict | None = None,
+                 topkids: bool = True) -> Settings:
     """The settings of a run: the paper's subsets on TOSCA, a smaller set when ``quick``.
+
+    ``classes`` (TOSCA only) replaces the paper's classes: class name to the number of
+    deformations in Experiment 1; Experiment 2 takes ``min(2, n)`` of them (1 when
+    ``quick``, and ``quick`` caps Experiment 1 at 2). ``topkids=False``: no TOPKIDS part.
 
     ======================  ==========  =======  ========================  ============  =======
     run                     resolution  samples  Exp. 1 deformations       Exp. 2        TOPKIDS
@@ -120,11 +125,16 @@ def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Setting
     ======================  ==========  =======  ========================  ============  =======
     """
     if dataset == "tosca":
-        if quick:
-            return Settings("tosca", True, 3000, 100, {c: 2 for c in datasets.EXPERIMENT1_CLASSES},
-                            {c: 1 for c in datasets.EXPERIMENT2_CLASSES}, 5, seed)
-        return Settings("tosca", False, 3000, 100, dict(datasets.EXPERIMENT1_CLASSES),
-                        dict(datasets.EXPERIMENT2_CLASSES), 25, seed)
+        if classes is not None:
+            classes = _check_classes(classes)
+            e1 = {c: min(n, 2) if quick else n for c, n in classes.items()}
+            e2 = {c: 1 if quick else min(n, 2) for c, n in classes.items()}
+        else:
+            e1 = {c: 2 for c in datasets.EXPERIMENT1_CLASSES} if quick else dict(datasets.EXPERIMENT1_CLASSES)
+            e2 = {c: 1 for c in datasets.EXPERIMENT2_CLASSES} if quick else dict(datasets.EXPERIMENT2_CLASSES)
+        return Settings("tosca", quick, 3000, 100, e1, e2, (5 if quick else 25) if topkids else 0, seed)
+    if classes is not None:
+        raise ValueError("classes apply to TOSCA data only (the synthetic set has its own classes)")
     if dataset == "synthetic":
         from .synthetic import Synthetic
 
@@ -135,6 +145,21 @@ def settings_for(dataset: str, quick: bool = False, *, seed: int = 0) -> Setting
         return Settings("synthetic", False, None, 50, {c: 2 for c in classes}, {c: 1 for c in classes},
                         0, seed)
     raise ValueError(f"dataset must be 'tosca' or 'synthetic', got {dataset!r}")
+
+
+def _check_classes(classes: dict) -> dict:
+    if not isinstance(classes, dict) or not classes:
+        raise ValueError(f"classes must be a non-empty dict of class name to number of deformations, "
+                         f"got {classes!r}")
+    out = {}
+    for c, n in classes.items():
+        if not isinstance(c, str) or isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"classes: each class needs a name and a positive number of "
+                             f"deformations, got {c!r}: {n!r}")
+        out[c] = int(n)
+    if len(out) < 2:
+        raise ValueError(f"recognition needs at least two classes, got {sorted(out)}")
+    return out
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -533,7 +558,8 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
 # ----------------------------------------------------------------------------- main
 def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: int | None = None,
               seed: int = 0, quiet: bool = False, command: str | None = None,
-              diffusion: dict | None = None, weld_join: str = "pinch") -> dict:
+              diffusion: dict | None = None, weld_join: str = "pinch", classes: dict | None = None,
+              topkids: bool = True) -> dict:
     """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
 
     Parameters
@@ -566,6 +592,12 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         (IJCV 2010, §5); ``"tube"`` removes both 1-rings and joins them by a short handle of
         finite width (harder: like the self-contacts of SHREC'16 TOPKIDS). Recorded in
         ``params``.
+    classes : dict of str to int, optional
+        TOSCA classes to run instead of the paper's (:func:`settings_for`), e.g.
+        ``{"wolf": 2, "horse": 4, "centaur": 5, "michael": 6}`` -- classes the paper did not
+        use, to choose settings without looking at its test classes. Recorded in ``params``.
+    topkids : bool, default True
+        Run the TOPKIDS part when its data is there.
 
     Returns
     -------
@@ -586,7 +618,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         if not (data / "tosca").is_dir():
             raise datasets.DatasetError(f"{data}: no tosca/ directory (expected the layout of "
                                         f"../shared/data: tosca/cat0.off.gz, ...)")
-    st = settings_for(dataset, quick, seed=seed)
+    st = settings_for(dataset, quick, seed=seed, classes=classes, topkids=topkids)
     if weld_join not in _perturb.WELD_JOINS:
         raise ValueError(f"weld_join must be one of {_perturb.WELD_JOINS}, got {weld_join!r}")
     if diffusion:

@@ -57,12 +57,13 @@ from ._base import MetricSolver, check_shape
 
 __all__ = [
     "affinity", "diffusion_operator", "cotan_laplacian", "brute_force_diffusion_distance",
-    "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "DIFFUSION_KERNELS",
+    "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "DIFFUSION_KERNELS", "HEAT_UNITS",
 ]
 
 logger = logging.getLogger(__name__)
 
 DIFFUSION_KERNELS = ("connectivity", "gaussian", "heat", "biharmonic")
+HEAT_UNITS = ("raw", "length")
 
 
 # ----------------------------------------------------------------------------- operators
@@ -360,7 +361,7 @@ class GraphDiffusionSolver(_SpectralDiffusion):
 
 
 class HeatDiffusionSolver(_SpectralDiffusion):
-    """Resolution-independent diffusion distance from the Laplace-Beltrami heat kernel.
+    r"""Resolution-independent diffusion distance from the Laplace-Beltrami heat kernel.
 
     Parameters
     ----------
@@ -376,16 +377,37 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         always use it).
     rtol : float, default 1e-6
         See :class:`GraphDiffusionSolver`.
+    units : {"raw", "length"}, default "raw"
+        ``"raw"``: :math:`d_t` as defined above (unit 1/length; scaling a shape by ``s``
+        scales it by ``1/s``). ``"length"``: :math:`\sqrt{32\pi}\, t\, d_t`, in the shape's
+        units of length. On a plane :math:`d_t^2 = 2 (k_{2t}(x,x) - k_{2t}(x,y))` with
+        :math:`k_t = e^{-r^2/4t}/(4\pi t)`, so
+
+        .. math:: \sqrt{32\pi}\, t\, d_t(x, y) = \sqrt{8t}\,\sqrt{1 - e^{-r^2/8t}}
+                  \approx r \quad (r \ll \sqrt{8t}):
+
+        the scaled distance equals the geodesic distance below the diffusion radius and
+        saturates at :math:`\sqrt{8t}` beyond it; scaling a shape by ``s`` scales it by
+        ``s``, as geodesic distances do, so a Gromov-Hausdorff distance sees a shape's size the
+        way it does with geodesic distances. (A per-shape constant: it changes distances
+        between shapes of different areas, never the distances within one shape relative to
+        each other.)
     """
 
-    def __init__(self, shape, *, tau: float = 0.005, laplacian: str = "cotan", rtol: float = 1e-6):
+    def __init__(self, shape, *, tau: float = 0.005, laplacian: str = "cotan", rtol: float = 1e-6,
+                 units: str = "raw"):
         shape = check_shape(shape, metric="diffusion")
         super().__init__(shape, rtol)
         if not tau > 0:
             raise ValueError(f"tau must be positive, got {tau}")
+        if units not in HEAT_UNITS:
+            raise ValueError(f"units must be one of {HEAT_UNITS}, got {units!r}")
         self.tau = float(tau)
+        self.units = units
         self.laplacian, self.stiffness, self.mass, self.area = _laplacian(shape, laplacian, "heat diffusion")
         self.t = self.tau * self.area
+        # the factor that puts d_t in units of length (see ``units``)
+        self.unit_scale = float(np.sqrt(32.0 * np.pi) * self.t) if units == "length" else 1.0
 
     def _compute_embedding(self):
         n, t, area = self.n_vertices, self.t, self.area
@@ -401,7 +423,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
             if k > n // 3:
                 lam, phi = _dense_generalized(self.stiffness, self.mass)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
-                return phi * np.exp(-np.maximum(lam, 0.0) * t)
+                return phi * (self.unit_scale * np.exp(-np.maximum(lam, 0.0) * t))
             lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
             order = np.argsort(lam)
             lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
@@ -412,12 +434,12 @@ class HeatDiffusionSolver(_SpectralDiffusion):
                 break
             k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
         self.eigenvalues = lam
-        self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass)
-        return psi
+        self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass) * self.unit_scale**2
+        return psi * self.unit_scale if self.unit_scale != 1.0 else psi
 
     def __repr__(self) -> str:
         return (f"HeatDiffusionSolver(n_vertices={self.n_vertices}, tau={self.tau}, "
-                f"laplacian={self.laplacian!r})")
+                f"laplacian={self.laplacian!r}, units={self.units!r})")
 
 
 def _laplacian(shape, laplacian: str, what: str):
