@@ -232,3 +232,22 @@ def test_fill_holes_option(tmp_path, capsys):
     assert runs[None][1] == {"kernel": "heat", "fill_holes": 0.5}
     assert runs["0"][1] == {"kernel": "heat", "fill_holes": None}
     assert not np.allclose(runs[None][0], runs["0"][0])
+
+
+def test_units_option(tmp_path, capsys):
+    src = tmp_path / "sphere.off"
+    gromov.save(icosphere(2), src)
+    out = tmp_path / "d.npz"
+    assert main(["distances", str(src), "--metric", "geodesic", "--units", "length", "--out", str(out)]) == 2
+    assert "--units applies to --metric diffusion" in capsys.readouterr().err
+    assert main(["distances", str(src), "--kernel", "biharmonic", "--units", "length", "--out", str(out)]) == 2
+    assert "--units applies to the heat kernel" in capsys.readouterr().err
+    runs = {}
+    for units in ("raw", "length"):
+        assert main(["distances", str(src), "--samples", "6", "--units", units, "--out", str(out), "-q"]) == 0
+        z = np.load(out)
+        runs[units] = z["distances"]
+        assert json.loads(str(z["options"]))["units"] == units
+    # a constant factor, sqrt(32 pi) tau area (HeatDiffusionSolver)
+    area = icosphere(2).area
+    np.testing.assert_allclose(runs["length"], runs["raw"] * np.sqrt(32 * np.pi) * 0.005 * area, rtol=1e-9)

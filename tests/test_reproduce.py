@@ -89,6 +89,24 @@ def test_settings_and_user_errors(tmp_path, capsys):
     assert main(["reproduce", "--data", str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
 
 
+def test_other_classes(tmp_path, capsys):
+    st = settings_for("tosca", classes={"wolf": 2, "horse": 4, "michael": 6}, topkids=False)
+    assert st.experiment1 == {"wolf": 2, "horse": 4, "michael": 6}
+    assert st.experiment2 == {"wolf": 2, "horse": 2, "michael": 2} and st.topkids == 0
+    quick = settings_for("tosca", True, classes={"wolf": 2, "horse": 4})
+    assert quick.experiment1 == {"wolf": 2, "horse": 2} and quick.experiment2 == {"wolf": 1, "horse": 1}
+    assert quick.topkids == 5
+    for bad in ({"wolf": 2}, {"wolf": 0, "horse": 1}, {"wolf": True, "horse": 1}, {}):
+        with pytest.raises(ValueError, match="classes"):
+            settings_for("tosca", classes=bad)
+    with pytest.raises(ValueError, match="TOSCA data only"):
+        settings_for("synthetic", classes={"wolf": 2, "horse": 4})
+    for arg, msg in (("wolf:2", "at least two classes"), ("wolf2,horse:1", "CLASS:N")):
+        with pytest.raises(SystemExit) as exc:
+            main(["reproduce", "--classes", arg, "--out", str(tmp_path / "o")])
+        assert exc.value.code == 2 and msg in capsys.readouterr().err
+
+
 def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     code, out = quick_run
     r = json.loads((out / "results.json").read_text())
