@@ -132,3 +132,19 @@ def test_symmetry_of_an_ellipsoid_is_a_reflection():
     assert np.median(D[S[S], np.arange(len(S))]) < 2 * edge
     at = SurfacePoints.at_vertices(s.mesh, S[P])
     assert pair_orientation(s, s, P, P, at, at) < 0.2
+
+
+def test_symmetry_of_the_tosca_wolf_is_its_left_right_reflection(data_dir):
+    """A reflection is its own inverse. Without that check the wolf's diffusion self-map sent
+    a sixth of the vertices to the wrong leg (17.5% farther than 5% of the bounding box's
+    diagonal from the left/right mirror; session 9); with it (``INVOLUTION_TOL``) 1.3%."""
+    s = ShapeMetric(gromov.load(data_dir / "tosca" / "wolf0.off.gz"), "diffusion")
+    S = s.symmetry(100, 0)
+    assert S is not None
+    V = s.mesh.vertices
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    mirrored = V * [-1, 1, 1] + [V[:, 0].max() + V[:, 0].min(), 0, 0]  # wolf0: the plane x = centre
+    wrong = np.linalg.norm(V[S] - mirrored, axis=1) > 0.05 * diag
+    assert wrong.mean() < 0.05
+    back = np.linalg.norm(V[S[S]] - V, axis=1) > 0.05 * diag
+    assert back.mean() < 0.05
