@@ -57,7 +57,7 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
         "gaussian", "heat" for the resolution-independent Laplace-Beltrami heat kernel, or
         "biharmonic" for the heat-kernel distance integrated over all times),
         then ``m``, ``density_normalize``, ``sigma``, ``k`` (graph kernels) or ``tau``,
-        ``laplacian`` (heat kernel), and ``rtol``.
+        ``laplacian``, ``units`` (heat kernel), and ``rtol``.
         Every metric on a mesh also takes ``fill_holes`` (float or None): boundary loops
         shorter than ``fill_holes * sqrt(A)``, ``A`` the area of the connected component that
         the loop bounds (:func:`gromov.mesh.component_areas`), are closed by a fan of triangles
