@@ -91,6 +91,9 @@ def main(argv=None):
                          "(gromov.match's search_vertices; default: the library's)")
     ap.add_argument("--orientation", choices=("ignore", "prefer"), default=None,
                     help="gromov.match's orientation option (default: the library's, prefer)")
+    ap.add_argument("--radius", type=float, default=None, metavar="F",
+                    help="partial matching: GMDS counts only sample pairs closer than F times the "
+                         "larger diameter (gromov.match's radius; default: all pairs)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     tosca = TOSCA(Path(args.data) / "tosca")
@@ -120,6 +123,8 @@ def main(argv=None):
                 extra = {} if args.search_vertices is None else {"search_vertices": args.search_vertices}
                 if args.orientation is not None:
                     extra["orientation"] = args.orientation
+                if args.radius is not None:
+                    extra["radius"] = args.radius * diam
                 r = match(sx, sy, metric, n_samples=args.samples, **extra)
                 q = _pair_quality(r, shapes, ref, y)
                 # the match's samples are these same P (ShapeMetric.samples: FPS, seed 0)
@@ -162,7 +167,7 @@ def main(argv=None):
         Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "classes": args.classes,
                                                "weld_join": args.weld_join, "fill_holes": args.fill_holes,
                                                "search_vertices": args.search_vertices,
-                                               "orientation": args.orientation,
+                                               "orientation": args.orientation, "radius": args.radius,
                                                "samples": args.samples, "summary": summary, "rows": rows},
                                               indent=1))
 
