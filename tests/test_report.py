@@ -256,3 +256,17 @@ def test_write_report_validation(tmp_path):
         write_report([("eer", {})], tmp_path)
     with pytest.raises(TypeError, match="figures"):
         write_report({}, tmp_path, figures=["roc.png"])
+
+
+def test_write_report_says_when_the_classes_are_not_the_papers(tmp_path):
+    from gromov.experiments.report import PAPER_CLASSES, other_classes
+
+    r = _results({})
+    assert other_classes(r) == []   # no classes recorded: nothing to say
+    r["params"]["experiment1"] = {c: 2 for c in PAPER_CLASSES}
+    assert other_classes(r) == []
+    r["params"]["experiment1"] = {"wolf": 2, "horse": 4}
+    assert other_classes(r) == ["wolf", "horse"]
+    text = _text(write_report(r, tmp_path).read_text())
+    assert "Run on wolf, horse, not on the paper's classes (cat, dog, david, victoria)" in text
+    assert other_classes({**r, "dataset": "synthetic"}) == []

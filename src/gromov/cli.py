@@ -353,7 +353,7 @@ def cmd_reproduce(args) -> int:
     import os
 
     from .experiments.datasets import data_root
-    from .experiments.report import PAPER
+    from .experiments.report import PAPER, PAPER_CLASSES, other_classes
     from .experiments.reproduce import RESULT_KEYS, reproduce
 
     data = None
@@ -374,6 +374,9 @@ def cmd_reproduce(args) -> int:
     opts = r["params"]["metric_options"]["diffusion"]
     print("  diffusion metric: " + ", ".join(f"{k}={v}" for k, v in opts.items())
           + f"; welds: {r['params']['weld_join']}")
+    other = other_classes(r)
+    if other:
+        print(f"  classes {', '.join(other)}: the paper's numbers are for {', '.join(PAPER_CLASSES)}")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
