@@ -138,6 +138,7 @@ def test_match_json_and_out(tmp_path, capsys):
     assert res["distance"] == pytest.approx(0.5 * res["distortion"]["l2"])
     assert res["relative_distance"] < 0.01  # isometric shapes
     assert 0.0 <= res["orientation"] <= 1.0  # a fraction of sample triangles (both sheets orientable)
+    assert res["metric_options"] == {}
     z = np.load(out)
     for side, other in (("x", "y"), ("y", "x")):
         assert z[f"{side}_samples"].shape == (20,)
@@ -248,6 +249,9 @@ def test_units_option(tmp_path, capsys):
         z = np.load(out)
         runs[units] = z["distances"]
         assert json.loads(str(z["options"]))["units"] == units
+    assert main(["match", str(src), str(src), "--samples", "6", "--units", "length", "--json"]) == 0
+    opts = json.loads(capsys.readouterr().out)["metric_options"]
+    assert opts == {"kernel": "heat", "units": "length", "fill_holes": 0.5}
     # a constant factor, sqrt(32 pi) tau area (HeatDiffusionSolver)
     area = icosphere(2).area
     np.testing.assert_allclose(runs["length"], runs["raw"] * np.sqrt(32 * np.pi) * 0.005 * area, rtol=1e-9)

@@ -252,8 +252,8 @@ def cmd_match(args) -> int:
         if out.parent and not out.parent.exists():
             raise _UserError(f"output folder {out.parent} does not exist")
         np.savez_compressed(out, **r.arrays())
-    if args.json:
-        print(json.dumps(r.to_dict()))
+    if args.json:   # the metric's options too: the distance's units depend on them
+        print(json.dumps({**r.to_dict(), "metric_options": _metric_options(args)}))
     else:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
               f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
