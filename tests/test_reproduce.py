@@ -148,3 +148,10 @@ def test_weld_join_option(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["reproduce", "--quick", "--weld-join", "glue", "--out", str(tmp_path / "o")])
     assert "invalid choice: 'glue'" in capsys.readouterr().err
+
+
+def test_unknown_class_is_a_clear_error(data_dir, tmp_path, capsys):
+    assert main(["reproduce", "--data", str(data_dir), "--classes", "unicorn:2,wolf:2", "--no-topkids",
+                 "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "no class 'unicorn'" in err and "wolf" in err and "Traceback" not in err

@@ -634,6 +634,10 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     collection = _collection(dataset, data)
+    unknown = [c for c in {**st.experiment1, **st.experiment2} if c not in collection.classes]
+    if unknown:
+        raise datasets.DatasetError(f"no class {', '.join(map(repr, unknown))} in {data}; classes: "
+                                    f"{', '.join(collection.classes)}")
     shapes = _Shapes(collection, st.resolution, weld_join)
     timings: dict = {}
     _say(f"gromov reproduce: {dataset}{' (quick)' if quick else ''}, {jobs} job(s), output in {out}", quiet)
