@@ -46,9 +46,7 @@ def _classes(text: str) -> dict:
         if not sep or not name.strip():
             raise argparse.ArgumentTypeError(f"expected CLASS:N[,CLASS:N...], got {item!r}")
         out[name.strip()] = _positive_int(n)
-    if len(out) < 2:
-        raise argparse.ArgumentTypeError(f"recognition needs at least two classes, got {text!r}")
-    return out
+    return out   # the rest is checked by reproduce (settings_for)
 
 
 def _metric_options(args) -> dict:
@@ -97,6 +95,21 @@ def _diffusion_options(args) -> dict:
     return opts
 
 
+def _add_heat_args(p: argparse.ArgumentParser) -> None:
+    """``--tau``, ``--units`` and ``--fill-holes`` (the diffusion metric's), for ``match``,
+    ``distances`` and ``reproduce``."""
+    from .metrics.diffusion import HEAT_UNITS
+
+    p.add_argument("--tau", type=float, default=None,
+                   help="heat-kernel diffusion time relative to the area (default 0.005)")
+    p.add_argument("--units", choices=HEAT_UNITS, default=None,
+                   help="heat-kernel diffusion distance in units of 1/length (raw) or scaled to "
+                        "the geodesic distance below the diffusion radius (length)")
+    p.add_argument("--fill-holes", type=float, default=None, metavar="F",
+                   help="diffusion: close boundary loops shorter than F * sqrt(area of their "
+                        "component) before computing the metric (default 0.5; 0 leaves holes open)")
+
+
 def _add_metric_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--metric", choices=("geodesic", "diffusion", "euclidean"), default="diffusion",
                    help="distance on the surface (default: diffusion)")
@@ -111,14 +124,7 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                         "biharmonic distance (heat-kernel distances integrated over all times)")
     p.add_argument("--steps", type=_positive_int, default=None,
                    help="diffusion steps m of the graph kernels (default 50)")
-    p.add_argument("--tau", type=float, default=None,
-                   help="heat-kernel diffusion time relative to the area (default 0.005)")
-    p.add_argument("--units", choices=("raw", "length"), default=None,
-                   help="heat-kernel diffusion distance in units of 1/length (raw) or scaled to "
-                        "the geodesic distance below the diffusion radius (length)")
-    p.add_argument("--fill-holes", type=float, default=None, metavar="F",
-                   help="diffusion: close boundary loops shorter than F * sqrt(area of their "
-                        "component) before computing the metric (default 0.5; 0 leaves holes open)")
+    _add_heat_args(p)
 
 
 def _load(path: str):
@@ -463,14 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
                    help="diffusion metric: heat kernel (default), the paper's connectivity-kernel graph "
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
-    q.add_argument("--tau", type=float, default=None,
-                   help="heat-kernel diffusion time relative to the area (default 0.005)")
-    q.add_argument("--units", choices=("raw", "length"), default=None,
-                   help="heat-kernel diffusion distance in units of 1/length (raw) or scaled to "
-                        "the geodesic distance below the diffusion radius (length)")
-    q.add_argument("--fill-holes", type=float, default=None, metavar="F",
-                   help="diffusion: close boundary loops shorter than F * sqrt(area of their "
-                        "component) before computing the metric (default 0.5; 0 leaves holes open)")
+    _add_heat_args(q)
     q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")

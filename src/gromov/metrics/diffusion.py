@@ -435,7 +435,8 @@ class HeatDiffusionSolver(_SpectralDiffusion):
             k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
         self.eigenvalues = lam
         self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass) * self.unit_scale**2
-        return psi * self.unit_scale if self.unit_scale != 1.0 else psi
+        psi *= self.unit_scale   # a fresh array
+        return psi
 
     def __repr__(self) -> str:
         return (f"HeatDiffusionSolver(n_vertices={self.n_vertices}, tau={self.tau}, "
