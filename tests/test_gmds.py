@@ -69,6 +69,28 @@ def test_norms():
     assert linf.distortion_linf <= l2.distortion_linf * 1.001
 
 
+def test_trimmed_rms_sets_aside_the_worst_fitting_pairs():
+    from gromov.gmds import TRIM_KEEP, trimmed_rms
+
+    rng = np.random.default_rng(0)
+    r = rng.normal(size=1000)
+    assert trimmed_rms(r, 1.0) == pytest.approx(norm_value(r, 2))       # keep = 1: the RMS
+    assert trimmed_rms(r) < norm_value(r, 2)
+    assert trimmed_rms(r) == pytest.approx(trimmed_rms(rng.permutation(-r)))   # order, sign
+    assert trimmed_rms(3.0 * r) == pytest.approx(3.0 * trimmed_rms(r))
+    # the smallest ceil(keep * n) squares, by hand
+    h = int(np.ceil(TRIM_KEEP * r.size))
+    assert trimmed_rms(r) == pytest.approx(np.sqrt(np.mean(np.sort(r**2)[:h])))
+    # pairs a local change altered (here 15% of them, by a lot) are set aside entirely
+    small = np.full(1000, 0.01)
+    small[:150] = 5.0
+    assert trimmed_rms(small) == pytest.approx(0.01) and norm_value(small, 2) > 1.9
+    assert trimmed_rms([]) == 0.0
+    for bad in (0.0, 1.5, -0.2):
+        with pytest.raises(ValueError, match="keep"):
+            trimmed_rms(r, bad)
+
+
 def test_result_fields_and_gw_solver():
     x, y = grid(21, 11), rolled_grid(21, 11)
     for solver in ("gmds", "gw"):
@@ -77,7 +99,12 @@ def test_result_fields_and_gw_solver():
         d = r.to_dict()
         assert set(d) >= {"distance", "relative_distance", "distortion", "metric", "solver",
                           "n_samples", "seconds"}
-        assert set(d["distortion"]) >= {"l2", "linf"}
+        assert set(d["distortion"]) >= {"l2", "linf", "trimmed"}
+        # the trimmed distortion leaves out the worst-fitting pairs: never above the RMS
+        assert 0.0 <= r.distortion_trimmed <= r.distortion_l2
+        assert r.relative_trimmed == pytest.approx(
+            r.relative_distance * r.distortion_trimmed / r.distortion_l2)
+        assert d["relative_trimmed_distance"] == r.relative_trimmed
         a = r.arrays()
         assert a["x_samples"].shape == (20,) and a["x_to_y_bary"].shape == (20, 3)
         np.testing.assert_allclose(a["x_to_y_bary"].sum(1), 1.0)

@@ -35,6 +35,11 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
             d = np.array(rec[m]["relative"])
             assert d.shape == (n, n) and np.allclose(d, d.T) and np.all(np.diag(d) == 0)
             assert np.all(d[~np.eye(n, dtype=bool)] > 0)
+            # recognition ranks by the trimmed distortion by default; both EERs are recorded
+            t = np.array(rec[m]["trimmed"])
+            assert t.shape == (n, n) and np.allclose(t, t.T) and np.all(t <= d + 1e-9)
+            assert rec[m]["ranked_by"] == "trimmed" and r["params"]["rank_by"] == "trimmed"
+            assert rec[m]["eer"] == rec[m]["eer_trimmed"] and 0.0 <= rec[m]["eer_gh"] <= 1.0
     # the perturbations did what they say: welds lower the Euler characteristic, holes add loops
     shapes = r["recognition"]["weld"]["shapes"]
     welded = [s for label, s in shapes.items() if "+weld" in label]
@@ -51,6 +56,7 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
         assert (out / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     html = (out / "index.html").read_text()
     assert "data:image/png;base64," in html and "13.5" in html   # the paper's geodesic EER beside ours
+    assert "trimmed distortion" in html and "EER, GH estimate" in html
 
 
 def test_quick_run_correspondence_is_measured(quick_run):
@@ -122,6 +128,9 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     with pytest.raises(ValueError, match="diffusion options"):
         reproduce(None, tmp_path / "o", quick=True, diffusion={"kernel": "biharmonic", "m": 50})
     assert not (tmp_path / "o").exists()  # refused before any work
+    with pytest.raises(ValueError, match="rank_by must be one of"):
+        reproduce(None, tmp_path / "o", quick=True, rank_by="median")
+    assert not (tmp_path / "o").exists()
 
 
 def test_weld_join_option(tmp_path, capsys):

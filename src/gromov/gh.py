@@ -20,7 +20,7 @@ import numpy as np
 from . import _gmds_kernel as _kernel
 from ._project import project_points
 from .errors import GromovWarning
-from .gmds import SurfaceDistance, SurfacePoints, SymmetricGMDS, norm_value, parse_norm
+from .gmds import SurfaceDistance, SurfacePoints, SymmetricGMDS, norm_value, parse_norm, trimmed_rms
 from .mesh import Mesh
 from .metrics import metric_solver
 from .orientation import orientation_agreements, outward_normals
@@ -228,6 +228,13 @@ class MatchResult:
         (:func:`gromov.orientation.orientation_agreement`, both directions averaged): about 1
         for a direct map, about 0 for a mirrored one (left and right swapped), about 1/2 for a
         scrambled one; NaN when a mesh is not orientable.
+    distortion_trimmed : float
+        RMS distortion of the best-fitting 80% of the pairs of the final correspondence
+        (:func:`gromov.gmds.trimmed_rms`, ``TRIM_KEEP``): the distortion left when the pairs a
+        local topology change altered are set aside. Not the GH estimate.
+    relative_trimmed : float
+        Half of it divided by the larger diameter, comparable to ``relative_distance``; what
+        the recognition experiments rank shapes by (:func:`gromov.experiments.gh_matrix`).
     """
 
     distance: float
@@ -251,13 +258,16 @@ class MatchResult:
     converged: bool
     seconds: float
     orientation: float = float("nan")
+    distortion_trimmed: float = float("nan")
+    relative_trimmed: float = float("nan")
     history: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
     def to_dict(self) -> dict:
         """The JSON fields of ``gromov match --json``."""
         return {"distance": self.distance, "relative_distance": self.relative_distance,
                 "distortion": {"l2": self.distortion_l2, "linf": self.distortion_linf,
-                               self.norm: self.distortion},
+                               "trimmed": self.distortion_trimmed, self.norm: self.distortion},
+                "relative_trimmed_distance": self.relative_trimmed,
                 "norm": self.norm, "metric": self.metric, "solver": self.solver,
                 "n_samples": self.n_samples, "n_iter": self.n_iter, "converged": self.converged,
                 "orientation": self.orientation if np.isfinite(self.orientation) else None,
@@ -796,7 +806,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     dx, dy = gm.blocks(img_p, img_q)
     r = (dx - dy)[~np.eye(len(dx), dtype=bool)]
     dis = norm_value(r, p)
-    d_l2, d_linf = norm_value(r, 2.0), norm_value(r, np.inf)
+    d_l2, d_linf, d_trim = norm_value(r, 2.0), norm_value(r, np.inf), trimmed_rms(r)
     diam = max(sx.diameter, sy.diameter)
     xy_face, xy_bary, xy_vertex = sy.locate(img_p)
     yx_face, yx_bary, yx_vertex = sx.locate(img_q)
@@ -809,4 +819,5 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         y_samples=sy.working.to_input_ids(Q), y_to_x_face=yx_face, y_to_x_bary=yx_bary,
         y_to_x_vertex=yx_vertex,
         n_iter=int(n_iter), converged=bool(converged), seconds=time.perf_counter() - t0,
-        orientation=orient, history=np.asarray(history))
+        orientation=orient, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
+        history=np.asarray(history))

@@ -30,7 +30,11 @@ _MATRIX = False                   # gh_matrix: distances with orientation="ignor
 
 @dataclass(frozen=True, eq=False)
 class PairwiseGH:
-    """Symmetric ``(n, n)`` matrices of GH estimates (``distance``) and relative ones."""
+    """Symmetric ``(n, n)`` matrices of GH estimates (``distance``) and relative ones.
+
+    ``trimmed``: the same correspondences' trimmed distortion, relative like ``relative``
+    (:attr:`gromov.MatchResult.relative_trimmed`), which recognition ranks shapes by.
+    """
 
     distance: np.ndarray
     relative: np.ndarray
@@ -40,6 +44,7 @@ class PairwiseGH:
     seconds_match: float
     results: dict = field(default_factory=dict)
     """``{(i, j): MatchResult}`` for the pairs asked for with ``keep`` (``i < j``)."""
+    trimmed: np.ndarray | None = None
 
 
 def _pair(ij):
@@ -47,7 +52,7 @@ def _pair(ij):
     x, y = _SHAPES[i], _SHAPES[j]
     if not _MATRIX:
         r = match(x, y, x.metric, **_OPTIONS)
-        return r.distance, r.relative_distance, r
+        return r.distance, r.relative_distance, r.relative_trimmed, r
     # the GH estimate: the lowest distortion found, mirror images included
     options = dict(_OPTIONS)
     orientation = options.pop("orientation", "prefer")
@@ -57,7 +62,7 @@ def _pair(ij):
         full = r
         if orientation == "prefer" and not r.orientation > 0.5:  # the same run, then more
             full = match(x, y, x.metric, orientation="prefer", **options)
-    return r.distance, r.relative_distance, full
+    return r.distance, r.relative_distance, r.relative_trimmed, full
 
 
 def _one_thread_per_worker():
@@ -104,7 +109,7 @@ def _subsets(match_options: dict) -> list[int]:
 
 
 def _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=False):
-    """``(distance, relative, MatchResult or None)`` per pair, in the order of ``pairs``."""
+    """``(distance, relative, trimmed, MatchResult or None)`` per pair, in the order of ``pairs``."""
     global _SHAPES, _OPTIONS, _KEEP, _MATRIX
     from tqdm import tqdm
 
@@ -149,7 +154,7 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
         raise ValueError(f"pairs must index the {n} shapes, got {bad[:3]}")
     runs = _run(prepared, pairs, set(pairs), jobs, progress, f"{metric} matches",
                 dict(n_samples=n_samples, seed=seed, **match_options))
-    return [full for _, _, full in runs]
+    return [full for *_, full in runs]
 
 
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
@@ -184,7 +189,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         GMDS treats both directions). The distance is the lowest distortion found, a mirror
         image being as good a correspondence as any: ``orientation`` only decides which map
         ``results`` holds (where the map found reverses the orientation, ``match`` runs again
-        with ``orientation="prefer"``, whose first steps are the same run).
+        with ``orientation="prefer"``, whose first steps are the same run). ``trimmed`` holds
+        the trimmed distortion of the same correspondence (:func:`gromov.gmds.trimmed_rms`).
     """
     shapes = list(shapes)
     if len(shapes) < 2:
@@ -204,13 +210,15 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
     dist = np.zeros((n, n))
     rel = np.zeros((n, n))
+    trim = np.zeros((n, n))
     kept = {}
-    for (i, j), (d, r, full) in zip(pairs, _run(prepared, pairs, keep, jobs, progress,
-                                                  f"{metric} GH pairs",
-                                                  dict(n_samples=n_samples, seed=seed, **match_options),
-                                                  matrix=True)):
+    for (i, j), (d, r, t, full) in zip(pairs, _run(prepared, pairs, keep, jobs, progress,
+                                                     f"{metric} GH pairs",
+                                                     dict(n_samples=n_samples, seed=seed, **match_options),
+                                                     matrix=True)):
         dist[i, j] = dist[j, i] = d
         rel[i, j] = rel[j, i] = r
+        trim[i, j] = trim[j, i] = t
         if full is not None:
             kept[i, j] = full
-    return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept)
+    return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim)
