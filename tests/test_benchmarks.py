@@ -41,7 +41,7 @@ def test_eer_breakdown_isolates_the_male_female_pairs():
     dv = np.isin(lab, ("david", "victoria"))
     D[dv[:, None] & dv[None] & (lab[:, None] != lab[None])] = 0.5
     out = eb.breakdown(_results(D, labels, perturbed))
-    row = out["weld", "diffusion"]
+    row = out["weld", "diffusion", "GH"]
     assert row["all"] == pytest.approx(equal_error_rate(D, lab)) and row["all"] > 0.1
     assert row["without david-victoria pairs"] == 0.0
     # clean shapes: one per class, so no positive pair among them
@@ -56,9 +56,35 @@ def test_eer_breakdown_clean_subset_uses_only_clean_pairs():
     # the perturbed cat is far from its class: an error that the clean subset must not see
     D[2, :3] = D[:3, 2] = 10.0
     D[2, 2] = 0.0
-    row = eb.breakdown(_results(D, labels, perturbed))["weld", "geodesic"]
+    row = eb.breakdown(_results(D, labels, perturbed))["weld", "geodesic", "GH"]
     assert row["all"] > 0.0
     assert row["clean only"] == 0.0
+
+
+def test_eer_breakdown_reads_the_trimmed_ranking_too():
+    eb = _module("eer_breakdown")
+    labels = ["cat", "cat", "dog", "dog"]
+    D, _ = _by_class(labels, 1.0, 3.0)
+    T, _ = _by_class(labels, 3.0, 1.0)   # a ranking that gets every pair wrong
+    res = _results(D, labels, [False] * 4)
+    res["recognition"]["weld"]["diffusion"]["trimmed"] = T.tolist()
+    out = eb.breakdown(res)
+    assert out["weld", "diffusion", "GH"]["all"] == 0.0
+    assert out["weld", "diffusion", "trimmed"]["all"] == 1.0
+    assert ("weld", "geodesic", "trimmed") not in out   # not recorded: not invented
+
+
+def test_recognition_statistics_summarise_the_off_diagonal_residuals():
+    rs = _module("recognition_statistics")
+    e = np.full((21, 21), 0.1)
+    e[0, 1:] = e[1:, 0] = 4.0          # one sample's pairs (2 x 20 of 420) fit badly
+    np.fill_diagonal(e, 7.0)           # the diagonal is not a pair
+    s = rs.statistics(e)
+    assert s["linf"] == 4.0 and s["median"] == pytest.approx(0.1)
+    assert s["gh"] == pytest.approx(np.sqrt((40 * 16 + 380 * 0.01) / 420))
+    assert s["l1"] == pytest.approx((40 * 4 + 380 * 0.1) / 420)
+    assert s["trim90"] == pytest.approx(0.1)   # 378 of 420 kept: the 40 bad ones are out
+    assert s["trim95"] > 0.1                   # 399 kept: 19 bad ones are in
 
 
 def test_weld_contact_pinch_merges_and_keeps_input_ids():

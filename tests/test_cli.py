@@ -133,7 +133,9 @@ def test_match_json_and_out(tmp_path, capsys):
     res = json.loads(capsys.readouterr().out)
     for key in ("distance", "relative_distance", "metric", "solver", "n_samples", "seconds"):
         assert key in res
-    assert set(res["distortion"]) >= {"l2", "linf"}
+    assert set(res["distortion"]) >= {"l2", "linf", "trimmed"}
+    assert res["distortion"]["trimmed"] <= res["distortion"]["l2"]
+    assert res["relative_trimmed_distance"] <= res["relative_distance"]
     assert res["metric"] == "geodesic" and res["solver"] == "gmds" and res["n_samples"] == 20
     assert res["distance"] == pytest.approx(0.5 * res["distortion"]["l2"])
     assert res["relative_distance"] < 0.01  # isometric shapes
@@ -158,6 +160,15 @@ def test_match_json_and_out(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
     with pytest.raises(SystemExit):
         main(["match", str(x), str(y), "--search-vertices", "0"])
+
+
+def test_match_summary_for_people(tmp_path, capsys):
+    x = tmp_path / "s.off"
+    gromov.save(icosphere(2), x)
+    assert main(["match", str(x), str(x), "--metric", "euclidean", "--samples", "15"]) == 0
+    out = capsys.readouterr().out
+    assert "Gromov-Hausdorff distance" in out and "euclidean metric" in out
+    assert "rms" in out and "max" in out and "best-fitting 80% of pairs" in out
 
 
 def test_match_gw_solver_and_errors(tmp_path, capsys):

@@ -105,6 +105,11 @@ def test_result_fields_and_gw_solver():
         assert r.relative_trimmed == pytest.approx(
             r.relative_distance * r.distortion_trimmed / r.distortion_l2)
         assert d["relative_trimmed_distance"] == r.relative_trimmed
+        e = r.pair_distortion   # the residuals the distortions are norms of
+        assert e.shape == (40, 40) and np.allclose(e, e.T) and np.all(np.diag(e) == 0)
+        off = e[~np.eye(40, dtype=bool)]
+        assert r.distortion_l2 == pytest.approx(norm_value(off, 2))
+        assert r.distortion_linf == pytest.approx(np.abs(off).max())
         a = r.arrays()
         assert a["x_samples"].shape == (20,) and a["x_to_y_bary"].shape == (20, 3)
         np.testing.assert_allclose(a["x_to_y_bary"].sum(1), 1.0)

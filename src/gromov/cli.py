@@ -265,7 +265,8 @@ def cmd_match(args) -> int:
               f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
               f"{r.n_samples} samples per shape")
         print(f"  distortion: {r.norm} {r.distortion:.6g}, rms {r.distortion_l2:.6g}, "
-              f"max {r.distortion_linf:.6g}; {r.n_iter} iterations, "
+              f"max {r.distortion_linf:.6g}, rms of the best-fitting 80% of pairs "
+              f"{r.distortion_trimmed:.6g}; {r.n_iter} iterations, "
               f"{'converged' if r.converged else 'not converged'}, {r.seconds:.2f} s")
         if np.isfinite(r.orientation):
             kind = ("keeps the orientation" if r.orientation > 0.5 else

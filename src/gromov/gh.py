@@ -235,6 +235,11 @@ class MatchResult:
     relative_trimmed : float
         Half of it divided by the larger diameter, comparable to ``relative_distance``; what
         the recognition experiments rank shapes by (:func:`gromov.experiments.gh_matrix`).
+    pair_distortion : ndarray (M+K, M+K)
+        ``D_X(C) - D_Y(C)`` of the final two-sided correspondence C = (P x Q') u (P' x Q): rows
+        and columns are first X's M samples (on Y: their images), then Y's K samples (on X:
+        their images), in the order of ``x_samples`` and ``y_samples``. Where a shape's
+        topology changed, the pairs whose paths run through the change stand out.
     """
 
     distance: float
@@ -260,6 +265,7 @@ class MatchResult:
     orientation: float = float("nan")
     distortion_trimmed: float = float("nan")
     relative_trimmed: float = float("nan")
+    pair_distortion: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     history: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
     def to_dict(self) -> dict:
@@ -804,7 +810,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
             img_p, img_q, n_iter, converged, history, orient = found
 
     dx, dy = gm.blocks(img_p, img_q)
-    r = (dx - dy)[~np.eye(len(dx), dtype=bool)]
+    residual = dx - dy
+    np.fill_diagonal(residual, 0.0)   # not a pair (an interpolated self-distance need not be 0)
+    r = residual[~np.eye(len(dx), dtype=bool)]
     dis = norm_value(r, p)
     d_l2, d_linf, d_trim = norm_value(r, 2.0), norm_value(r, np.inf), trimmed_rms(r)
     diam = max(sx.diameter, sy.diameter)
@@ -820,4 +828,5 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         y_to_x_vertex=yx_vertex,
         n_iter=int(n_iter), converged=bool(converged), seconds=time.perf_counter() - t0,
         orientation=orient, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
+        pair_distortion=residual,
         history=np.asarray(history))
