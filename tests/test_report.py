@@ -122,8 +122,8 @@ def _results(figures):
     rec = {"entries": [f"{c}{i}" for c in classes for i in range(3)],
            "classes": [c for c in classes for _ in range(3)],
            "perturbed": [i > 0 for _ in classes for i in range(3)],
-           "geodesic": {"eer": 0.3361, "nn_accuracy": 0.9},
-           "diffusion": {"eer": 0.1734, "nn_accuracy": 0.95}}
+           "geodesic": {"eer": 0.3361, "nn_accuracy": 0.9, "ranked_by": "trimmed", "eer_gh": 0.4012},
+           "diffusion": {"eer": 0.1734, "nn_accuracy": 0.95, "ranked_by": "trimmed", "eer_gh": 0.2222}}
     by_class = {c: {"clean": 0.02 + 0.01 * k, "weld": 0.03 + 0.01 * k, "holes": 0.04}
                 for k, c in enumerate(classes)}
     return {
@@ -143,6 +143,7 @@ def _results(figures):
                                  "per_shape": {"kid01": 0.11, "kid02": 0.12}},
                     "diffusion": {"correspondence": 0.0987, "correspondence_direct": 0.09,
                                   "mirrored_fraction": 0.25, "relative_distance_mean": 0.05,
+                                  "relative_trimmed_mean": 0.0321, "spearman_trimmed_vs_handles": 0.4321,
                                   "per_shape": {"kid01": 0.08, "kid02": 0.09}}},
         "timings": {"metrics": {"geodesic": 76.0, "diffusion": 32.5}, "pairs": 202.25},
         "params": {"n_samples": 100, "resolution": 3000, "tau": 0.005},
@@ -185,6 +186,9 @@ def test_write_report_full(figure_dir):
     # geodesic topology 0.03 < 0.1586 better; geodesic clean 0.02 < 0.0514 better
     assert "better than the paper" in text and "worse than the paper" in text
     assert "Worse than the paper in 4 of 10" in text
+    # the ranking is said, and the other ranking's EER is beside ours
+    assert "trimmed distortion" in text and "EER, GH estimate" in text and "40.1%" in text
+    assert "0.0321" in text and "0.4321" in text and "trimmed distortion with the number of handles" in text
     # captions, figures embedded, a missing one noted
     assert "ROC, Experiment 1 (welds)" in text
     assert "Correspondence, diffusion, welds" in text

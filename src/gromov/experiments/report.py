@@ -661,6 +661,9 @@ _TOPKIDS_ROWS = (
     ("correspondence_direct", "d(C, C0), direct ground truth only", _fix4),
     ("mirrored_fraction", "maps closer to the mirrored ground truth", _pct),
     ("relative_distance_mean", "mean relative distortion", _fix4),
+    ("spearman_distance_vs_handles", "Spearman ρ of the distortion with the number of handles", _fix4),
+    ("relative_trimmed_mean", "mean relative trimmed distortion (best-fitting 80% of pairs)", _fix4),
+    ("spearman_trimmed_vs_handles", "Spearman ρ of the trimmed distortion with the number of handles", _fix4),
 )
 
 

@@ -522,7 +522,7 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
         results = match_pairs(shapes, [(i, 0) for i in range(1, len(shapes))], metric,
                               n_samples=st.n_samples, seed=st.seed, resolution=None, jobs=jobs,
                               progress=not quiet)
-        direct, best, mirrored, rel, abs_err = [], [], [], [], []
+        direct, best, mirrored, rel, trim, abs_err = [], [], [], [], [], []
         for name, r in zip(names, results):
             gt = kids.ground_truth(name)[r.x_samples]
             gm = sym0[gt]
@@ -535,12 +535,17 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
             best.append(chosen.mean() / diam0)
             abs_err.append(chosen)
             rel.append(r.relative_distance)
+            trim.append(r.relative_trimmed)
         rho = spearmanr(handles[1:], rel).statistic if len(rel) > 2 else None
+        rho_t = spearmanr(handles[1:], trim).statistic if len(trim) > 2 else None
         res[metric] = {
             "correspondence": float(np.mean(best)), "correspondence_direct": float(np.mean(direct)),
             "mirrored_fraction": float(np.mean(mirrored)),
             "relative_distance_mean": float(np.mean(rel)), "relative_distance_max": float(np.max(rel)),
             "spearman_distance_vs_handles": None if rho is None else float(rho),
+            # the trimmed distortion (recognition's ranking): does it set the handles aside?
+            "relative_trimmed_mean": float(np.mean(trim)),
+            "spearman_trimmed_vs_handles": None if rho_t is None else float(rho_t),
             "per_shape": {n: round(float(b), 6) for n, b in zip(names, best)},
             "relative_distance": {n: round(float(d), 6) for n, d in zip(names, rel)},
             "seconds": round(time.perf_counter() - t, 2),
