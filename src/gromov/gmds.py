@@ -103,7 +103,7 @@ def trimmed_rms(r: np.ndarray, keep: float = TRIM_KEEP) -> float:
     r2 = np.square(np.asarray(r, dtype=float).ravel())
     if r2.size == 0:
         return 0.0
-    h = int(np.ceil(keep * r2.size - 1e-9))
+    h = max(1, int(np.ceil(keep * r2.size - 1e-9)))
     if h < r2.size:
         r2 = np.partition(r2, h - 1)[:h]
     return float(np.sqrt(np.mean(r2)))

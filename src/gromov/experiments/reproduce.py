@@ -420,7 +420,8 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
         coords = mds_map(D, 2, seed=st.seed)
         f = f"mds_{name}_{metric}.png"
         plot_mds(coords, labels, out / f, marked=perturbed, marked_label=name,
-                 title=f"MDS, {metric}, {'Experiment 1 (welds)' if name == 'weld' else 'Experiment 2 (holes)'}")
+                 title=f"MDS, {metric}, {'Experiment 1 (welds)' if name == 'weld' else 'Experiment 2 (holes)'}"
+                       f"{', trimmed distortion' if st.rank_by == 'trimmed' else ''}")
         rec.setdefault("figures", {})[f"mds_{name}_{metric}"] = f
         _say(f"  {name}/{metric}: EER {curve.eer:.3f}, nearest-neighbour accuracy "
              f"{rec[metric]['nn_accuracy']:.3f} ({time.perf_counter() - t:.0f} s)", quiet)
