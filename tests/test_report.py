@@ -137,7 +137,7 @@ def _results(figures):
                          "by_class": copy.deepcopy(by_class)},
             "diffusion": {"clean": 0.0213, "weld": 0.0299, "holes": 0.0301,
                           "by_class": copy.deepcopy(by_class)}},
-        "topkids": {"n_shapes": 3, "reference": "kid00",
+        "topkids": {"n_shapes": 3, "reference": "kid00", "handles": {"kid01": 4.5, "kid02": 3.0},
                     "geodesic": {"correspondence": 0.2345, "correspondence_direct": 0.2,
                                  "mirrored_fraction": 0.5, "relative_distance_mean": 0.07,
                                  "per_shape": {"kid01": 0.11, "kid02": 0.12}},
@@ -189,6 +189,9 @@ def test_write_report_full(figure_dir):
     # the ranking is said, and the other ranking's EER is beside ours
     assert "trimmed distortion" in text and "EER, GH estimate" in text and "40.1%" in text
     assert "0.0321" in text and "0.4321" in text and "trimmed distortion with the number of handles" in text
+    # the handles per kid are a column of the per-shape table, not a metric
+    assert not re.search(r"measure\s+diffusion\s+geodesic\s+handles", text)
+    assert re.search(r"shape\s+diffusion\s+geodesic\s+handles\s+kid01\s+0.0800\s+0.1100\s+4.5", text)
     # captions, figures embedded, a missing one noted
     assert "ROC, Experiment 1 (welds)" in text
     assert "Correspondence, diffusion, welds" in text

@@ -673,7 +673,9 @@ def _topkids(results: Mapping, figures: Mapping, out_dir: Path) -> str:
     if not isinstance(tk, Mapping):
         parts.append(_not_run("TOPKIDS (SHREC'16 topological noise)"))
     else:
-        metrics = [m for m in _ordered(tk, _METRIC_ORDER) if isinstance(tk[m], Mapping)]
+        # per-metric sections hold the results; "handles" (name -> count) is a mapping too
+        metrics = [m for m in _ordered(tk, _METRIC_ORDER)
+                   if isinstance(tk[m], Mapping) and "correspondence" in tk[m]]
         bits = []
         if tk.get("n_shapes") is not None:
             bits.append(f"{tk['n_shapes']} shapes")
@@ -693,10 +695,13 @@ def _topkids(results: Mapping, figures: Mapping, out_dir: Path) -> str:
                 if isinstance(ps, Mapping):
                     shapes.extend(s for s in ps if s not in shapes)
             if shapes:
+                handles = tk.get("handles") if isinstance(tk.get("handles"), Mapping) else {}
                 rows = [[s] + [_fix4(v) if (v := _get(tk, m, "per_shape", s)) is not None else ""
-                               for m in metrics] for s in shapes]
+                               for m in metrics]
+                        + ([f"{h:g}" if (h := _num(handles.get(s))) is not None else ""] if handles else [])
+                        for s in shapes]
                 parts.append("<h3>d(C, C0) per shape</h3>")
-                parts.append(_table(["shape"] + metrics, rows))
+                parts.append(_table(["shape"] + metrics + (["handles"] if handles else []), rows))
         else:
             parts.append('<p class="na">No per-metric results.</p>')
     parts.append(_figures_html(out_dir, figures, "topkids"))
