@@ -211,6 +211,19 @@ def test_write_report_full(figure_dir):
     assert "not run" not in text
 
 
+def test_write_report_ranked_by_the_gh_estimate(tmp_path):
+    res = _results({})
+    for exp in ("weld", "holes"):
+        for m in ("geodesic", "diffusion"):
+            rec = res["recognition"][exp][m]
+            rec["ranked_by"] = "gh"
+            rec.pop("eer_gh", None)
+            rec["eer_trimmed"] = 0.0123
+    text = _text(write_report(res, tmp_path).read_text(encoding="utf-8"))
+    assert "ranking the pairs by the Gromov-Hausdorff estimate" in text
+    assert "EER, trimmed" in text and "1.2%" in text and "EER, GH estimate" not in text
+
+
 def test_write_report_figures_argument_overrides(figure_dir):
     path = write_report(_results({"roc_weld": "roc.png"}), figure_dir,
                         figures={"mds_weld_diffusion": "corr.png", "extra_plot": "corr.png"})

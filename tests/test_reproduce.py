@@ -133,6 +133,27 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_rank_by_option_reaches_reproduce(monkeypatch, tmp_path):
+    import gromov.experiments.reproduce as rep
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake(*args, **kwargs):
+        seen.update(kwargs)
+        raise Stop
+
+    monkeypatch.setattr(rep, "reproduce", fake)
+    for argv, want in (([], "trimmed"), (["--rank-by", "gh"], "gh")):
+        with pytest.raises(Stop):
+            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
+        assert seen["rank_by"] == want
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--rank-by", "median"])
+
+
 def test_weld_join_option(tmp_path, capsys):
     """Welds merge vertices (pinch, chi - 1) or add handles (tube, chi - 2); the same sites."""
     from gromov.experiments.datasets import experiment1
