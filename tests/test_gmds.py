@@ -401,3 +401,25 @@ def test_face_neighbours_pairs_manifold_edges_only():
     assert (nb >= 0).all()
     for k in range(3):
         assert (nb[nb[:, k]] == np.arange(len(nb))[:, None]).any(1).all()
+
+
+def test_trimmed_distortion_sets_a_weld_aside_on_tosca(data_dir):
+    """Why recognition ranks by the trimmed distortion. A weld changes the distances of the
+    pairs whose paths run through it, a different shape those of most pairs: the welded pose's
+    distortion is concentrated in few pairs (its trimmed distortion is a small part of the
+    RMS) and that of a wolf against a horse is spread (a large part). Measured (diffusion,
+    2,000 vertices, 60 samples): trimmed / RMS 0.12 for wolf0 vs wolf1 with 2 welds (0.10-0.12
+    for weld seeds 0-3), 0.34 for wolf0 vs horse0, 0.33 for wolf0 vs the clean wolf1."""
+    from gromov.perturb import weld
+
+    tosca = data_dir / "tosca"
+    wx = gromov.simplify(gromov.load(tosca / "wolf0.off.gz"), 2000)
+    welded = weld(wx.transfer(gromov.load(tosca / "wolf1.off.gz")).mesh, 2, seed=0).mesh
+    horse = gromov.simplify(gromov.load(tosca / "horse0.off.gz"), 2000).mesh
+    sx = ShapeMetric(wx.mesh, "diffusion", resolution=None)
+    share = {}
+    for name, mesh in (("welded", welded), ("horse", horse)):
+        r = match(sx, ShapeMetric(mesh, "diffusion", resolution=None), "diffusion", n_samples=60,
+                  orientation="ignore")
+        share[name] = r.distortion_trimmed / r.distortion_l2
+    assert share["welded"] < share["horse"] - 0.1, share
