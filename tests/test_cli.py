@@ -147,6 +147,7 @@ def test_match_json_and_out(tmp_path, capsys):
         assert z[f"{side}_to_{other}_face"].shape == (20,)
         assert z[f"{side}_to_{other}_bary"].shape == (20, 3)
         assert z[f"{side}_to_{other}_vertex"].shape == (20,)
+        assert z[f"{side}_distortion"].shape == (20,) and np.all(z[f"{side}_distortion"] >= 0)
     # same vertex numbering and isometric: each image is the sample itself or one of its
     # images under the sheet's symmetries (mirror in u, in v, or both), the same for all
     u, w = np.divmod(z["x_samples"], 11)

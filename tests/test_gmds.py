@@ -110,7 +110,11 @@ def test_result_fields_and_gw_solver():
         off = e[~np.eye(40, dtype=bool)]
         assert r.distortion_l2 == pytest.approx(norm_value(off, 2))
         assert r.distortion_linf == pytest.approx(np.abs(off).max())
+        sx_, sy_ = r.sample_distortion   # per sample: their mean square is the RMS squared
+        assert sx_.shape == (20,) and sy_.shape == (20,)
+        assert np.mean(np.r_[sx_, sy_] ** 2) == pytest.approx(r.distortion_l2**2)
         a = r.arrays()
+        assert np.array_equal(a["x_distortion"], sx_) and np.array_equal(a["y_distortion"], sy_)
         assert a["x_samples"].shape == (20,) and a["x_to_y_bary"].shape == (20, 3)
         np.testing.assert_allclose(a["x_to_y_bary"].sum(1), 1.0)
         # the nearest vertex is a corner of the image face

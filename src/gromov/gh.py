@@ -280,11 +280,31 @@ class MatchResult:
                 "orientation": self.orientation if np.isfinite(self.orientation) else None,
                 "seconds": self.seconds}
 
+    @property
+    def sample_distortion(self) -> tuple[np.ndarray, np.ndarray]:
+        r"""``(x, y)``: RMS distortion of each sample's pairs, for X's M samples and Y's K.
+
+        Row ``a`` of ``pair_distortion`` without its diagonal:
+        :math:`e_a = (\frac{1}{M+K-1}\sum_{b \ne a} r_{ab}^2)^{1/2}`, so that the mean of
+        :math:`e_a^2` over all samples is ``distortion_l2**2``. Large where the map fits badly,
+        e.g. near a change of topology (the ``pair_distortion`` note).
+        """
+        e = np.asarray(self.pair_distortion, dtype=float)
+        n = len(e)
+        if n < 2:
+            return np.zeros(len(self.x_samples)), np.zeros(len(self.y_samples))
+        rows = np.sqrt((e**2).sum(axis=1) / (n - 1))
+        m = len(self.x_samples)
+        return rows[:m], rows[m:]
+
     def arrays(self) -> dict:
-        """The arrays of ``gromov match --out``."""
-        return {k: getattr(self, k) for k in (
+        """The arrays of ``gromov match --out``: the correspondences, and ``x_distortion``,
+        ``y_distortion`` (:attr:`sample_distortion`)."""
+        out = {k: getattr(self, k) for k in (
             "x_samples", "x_to_y_face", "x_to_y_bary", "x_to_y_vertex",
             "y_samples", "y_to_x_face", "y_to_x_bary", "y_to_x_vertex")}
+        out["x_distortion"], out["y_distortion"] = self.sample_distortion
+        return out
 
 
 # ----------------------------------------------------------------------------- initialisation
