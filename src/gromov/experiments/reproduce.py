@@ -398,16 +398,17 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
         r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
                       progress=not quiet, keep=keep)
         timings[f"{name}.{metric}.pairs_s"] = round(r.seconds_match, 2)
-        D = r.trimmed if st.rank_by == "trimmed" else r.relative
-        curve = roc(D, labels)
+        ranking = {"trimmed": r.trimmed, "gh": r.relative}
+        rocs = {k: roc(m, labels) for k, m in ranking.items()}
+        D, curve = ranking[st.rank_by], rocs[st.rank_by]
         curves[metric] = curve
         mask = perturbed[:, None] | perturbed[None, :]
         nn = labels[np.argmin(D + np.diag(np.full(len(items), np.inf)), axis=1)]
         rec[metric] = {
             "eer": float(curve.eer),
             "ranked_by": st.rank_by,
-            "eer_gh": float(roc(r.relative, labels).eer),
-            "eer_trimmed": float(roc(r.trimmed, labels).eer),
+            "eer_gh": float(rocs["gh"].eer),
+            "eer_trimmed": float(rocs["trimmed"].eer),
             "eer_perturbed_pairs": float(roc(D, labels, mask=mask).eer) if perturbed.any() else None,
             "nn_accuracy": float(np.mean(nn == labels)),
             "confusions": [f"{items[i].label}->{nn[i]}" for i in range(len(items)) if nn[i] != labels[i]],
