@@ -230,6 +230,7 @@ from numba import get_num_threads, njit, parallel_chunksize, prange
 
 from ..errors import MetricError
 from ..mesh import paired_half_edges
+from ._base import symmetrise_inplace as _symmetrise
 
 __all__ = ["FastMarching", "subdivide"]
 
@@ -1406,27 +1407,6 @@ def _march_many_serial(tab, sources, out, mode):
         src[0] = sources[i]
         _march(tab, src, T, pos, hk, hv, lab, dirs, mode)
         out[i, :] = T[:m]
-
-
-@njit(cache=True, parallel=True)
-def _symmetrise(D):
-    """In place ``D = (D + D.T) / 2`` with a zero diagonal, by cache-sized blocks."""
-    n = D.shape[0]
-    bs = 64
-    nb = (n + bs - 1) // bs
-    for bi in prange(nb):
-        i0 = bi * bs
-        i1 = min(n, i0 + bs)
-        for bj in range(bi, nb):
-            j0 = bj * bs
-            j1 = min(n, j0 + bs)
-            for i in range(i0, i1):
-                for j in range(max(j0, i + 1), j1):
-                    s = 0.5 * (D[i, j] + D[j, i])
-                    D[i, j] = s
-                    D[j, i] = s
-        for i in range(i0, i1):
-            D[i, i] = 0.0
 
 
 # ----------------------------------------------------------------------------------------
