@@ -98,6 +98,18 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
          "--refine applies to --metric geodesic"),
         (["distances", "{sphere}", "--metric", "geodesic", "--geodesic-method", "heat", "--refine", "1",
           "--out", "{tmp}/x.npz"], "--refine applies to --metric geodesic"),
+        (["pairwise", "{sphere}"], "at least two meshes"),
+        (["pairwise", "{sphere}", "{sphere}"], "a file is given twice"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a"],
+         "one non-empty label per file (2), got 1"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a,b",
+          "--labels-from-names"], "either --labels or --labels-from-names"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--out", "{tmp}/x.txt"],
+         "--out must end in .npz or .csv"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--mds", "{tmp}/m.png"],
+         "--mds needs at least three shapes"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--samples", "100"],
+         "more than the 8 vertices"),
     ],
 )
 def test_user_errors_are_one_line_without_traceback(tmp_path, argv, message):
@@ -267,3 +279,69 @@ def test_units_option(tmp_path, capsys):
     # a constant factor, sqrt(32 pi) tau area (HeatDiffusionSolver)
     area = icosphere(2).area
     np.testing.assert_allclose(runs["length"], runs["raw"] * np.sqrt(32 * np.pi) * 0.005 * area, rtol=1e-9)
+
+
+def test_class_from_name():
+    from gromov.cli import class_from_name
+
+    assert class_from_name("data/tosca/cat0.off.gz") == "cat"
+    assert class_from_name("david12.off") == "david"
+    assert class_from_name("/x/kid_12.PLY") == "kid"
+    assert class_from_name("shape.obj") == "shape"
+    assert class_from_name("123.off") == "123"   # nothing left: the whole stem
+
+
+def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
+    """Two classes: a sheet and the same sheet rolled into a half-cylinder (isometric), and
+    a sheet twice as long and a rigidly moved, renumbered copy of it. With the geodesic
+    metric each shape's nearest neighbour is the other of its class, the EER is 0, and the
+    files written agree with the printed JSON."""
+    from gromov.mesh import Mesh
+    from gromov.shapes import grid, rolled_grid
+
+    long = grid(31, 11, width=2 * np.pi)
+    perm = np.random.default_rng(0).permutation(long.n_vertices)
+    inv = np.argsort(perm)
+    c, s_ = np.cos(0.7), np.sin(0.7)
+    rot = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+    moved = Mesh(long.vertices[perm] @ rot.T + [1.0, -2.0, 0.5], inv[long.faces])
+    files = [tmp_path / "sheet0.off", tmp_path / "long0.off", tmp_path / "sheet1.ply",
+             tmp_path / "long1.obj"]
+    for f, m in zip(files, (grid(21, 11), long, rolled_grid(21, 11), moved)):
+        gromov.save(m, f)
+    npz, csv_path, png = tmp_path / "d.npz", tmp_path / "d.csv", tmp_path / "mds.png"
+    base = ["pairwise", *map(str, files), "--metric", "geodesic", "--samples", "20", "--jobs", "1"]
+    argv = [*base, "--labels-from-names"]
+    assert main([*argv, "--json", "--out", str(npz), "--mds", str(png)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    names = [str(f) for f in files]
+    assert res["files"] == names and res["labels"] == ["sheet", "long", "sheet", "long"]
+    assert res["nearest"] == [names[2], names[3], names[0], names[1]]
+    assert res["eer"] == 0.0 and res["eer_gh"] == 0.0 and res["nn_accuracy"] == 1.0
+    rel = np.array(res["relative_distance"])
+    trim = np.array(res["relative_trimmed_distance"])
+    assert np.array_equal(rel, rel.T) and np.all(np.diag(rel) == 0)
+    assert np.all(trim <= rel + 1e-15)
+    assert rel[0, 2] < 0.01 and rel[1, 3] < 1e-3     # isometric; rigid copy
+    assert min(rel[0, 1], rel[0, 3], rel[2, 1], rel[2, 3]) > 5 * max(rel[0, 2], rel[1, 3])
+    z = np.load(npz)
+    assert list(z["files"]) == names and list(z["labels"]) == res["labels"]
+    np.testing.assert_array_equal(z["relative_distance"], rel)
+    np.testing.assert_array_equal(z["relative_trimmed_distance"], trim)
+    np.testing.assert_array_equal(z["distance"], np.array(res["distance"]))
+    assert str(z["metric"]) == "geodesic" and int(z["n_samples"]) == 20
+    assert png.stat().st_size > 1000
+    # the same run (deterministic) as CSV, and the summary for people
+    assert main([*argv, "--out", str(csv_path)]) == 0
+    out = capsys.readouterr().out
+    assert "4 shapes, 6 pairs, geodesic metric" in out and "equal error rate 0.00%" in out
+    assert "another class" not in out
+    import csv
+
+    with open(csv_path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == [""] + names and [r[0] for r in rows[1:]] == names
+    np.testing.assert_array_equal(np.array([r[1:] for r in rows[1:]], dtype=float), rel)
+    # labels given by hand; one label per class only: no EER, said so
+    assert main([*base, "--labels", "a,b,c,d"]) == 0
+    assert "no equal error rate" in capsys.readouterr().out

@@ -1,4 +1,4 @@
-"""Command-line interface: ``gromov info|distances|match|perturb|reproduce|demo``.
+"""Command-line interface: ``gromov info|distances|match|pairwise|perturb|reproduce|demo``.
 
 Thin: parses arguments, calls the library, prints. User errors (unreadable file, bad
 option values, a metric that cannot be computed) print one line ``gromov: error: ...``
@@ -275,6 +275,169 @@ def cmd_match(args) -> int:
     return 0
 
 
+_MESH_EXTS = (".gz", ".off", ".obj", ".ply", ".stl", ".vert", ".tri")
+
+
+def _stem(path: str) -> str:
+    """File name without folders and mesh extensions (``cat0.off.gz`` -> ``cat0``)."""
+    name = Path(path).name
+    changed = True
+    while changed:
+        changed = False
+        for ext in _MESH_EXTS:
+            if name.lower().endswith(ext) and len(name) > len(ext):
+                name, changed = name[: -len(ext)], True
+    return name
+
+
+def class_from_name(path: str) -> str:
+    """A shape's class read from its file name: the stem without trailing digits and
+    separators (``cat0.off.gz`` -> ``cat``, ``kid_12.ply`` -> ``kid``); the whole stem when
+    nothing is left."""
+    stem = _stem(path)
+    cls = stem.rstrip("0123456789").rstrip("-_. ")
+    return cls or stem
+
+
+def _pairwise_labels(args, n: int) -> list[str] | None:
+    if args.labels is not None and args.labels_from_names:
+        raise _UserError("give either --labels or --labels-from-names, not both")
+    if args.labels_from_names:
+        return [class_from_name(f) for f in args.files]
+    if args.labels is None:
+        return None
+    labels = [x.strip() for x in args.labels.split(",")]
+    if len(labels) != n or not all(labels):
+        raise _UserError(f"--labels needs one non-empty label per file ({n}), got {len(labels)}: "
+                         f"{args.labels!r}")
+    return labels
+
+
+def cmd_pairwise(args) -> int:
+    from .experiments.pairwise import gh_matrix
+    from .experiments.recognition import mds_map, roc
+
+    n = len(args.files)
+    if n < 2:
+        raise _UserError("pairwise needs at least two meshes")
+    if len(set(args.files)) < n:
+        dup = sorted({f for f in args.files if args.files.count(f) > 1})
+        raise _UserError(f"a file is given twice: {', '.join(dup)}")
+    labels = _pairwise_labels(args, n)
+    outs = [Path(f) for f in (args.out, args.mds) if f]
+    for out in outs:
+        if out.parent and not out.parent.exists():
+            raise _UserError(f"output folder {out.parent} does not exist")
+    if args.out and not args.out.endswith((".npz", ".csv")):
+        raise _UserError(f"--out must end in .npz or .csv, got {args.out!r}")
+    if args.mds:
+        if n < 3:
+            raise _UserError("--mds needs at least three shapes")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise _UserError("--mds needs matplotlib: pip install 'gromov[plot]'") from None
+    from .mesh import Mesh
+
+    shapes = []
+    for path in args.files:
+        shape = _load(path)
+        if not isinstance(shape, Mesh):
+            raise _UserError(f"{path}: matching needs a triangle mesh, got a point cloud")
+        work = min(args.resolution, shape.n_vertices)
+        if args.samples > work:
+            raise _UserError(f"--samples {args.samples} is more than the {work} vertices of the "
+                             f"working mesh of {path}")
+        shapes.append(shape)
+    options = _metric_options(args)
+    t = time.perf_counter()
+    r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                  metric_options=options, seed=args.seed, jobs=args.jobs or _cpus(),
+                  progress=not (args.quiet or args.json))
+    seconds = time.perf_counter() - t
+    D = r.trimmed if args.rank_by == "trimmed" else r.relative
+    nearest = np.argmin(D + np.diag(np.full(n, np.inf)), axis=1)
+    names = list(args.files)
+    result = {"files": names, "metric": args.metric, "metric_options": options,
+              "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
+              "ranked_by": args.rank_by,
+              "distance": r.distance.tolist(), "relative_distance": r.relative.tolist(),
+              "relative_trimmed_distance": r.trimmed.tolist(),
+              "nearest": [names[j] for j in nearest], "labels": labels,
+              "seconds": seconds}
+    if labels is not None:
+        lab = np.array(labels)
+        result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
+        try:
+            curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
+        except ValueError:   # all one class, or every shape its own
+            curves = None
+        result["eer"] = None if curves is None else curves[args.rank_by].eer
+        result["eer_gh"] = None if curves is None else curves["gh"].eer
+        result["eer_trimmed"] = None if curves is None else curves["trimmed"].eer
+    if args.out:
+        out = Path(args.out)
+        if out.suffix == ".csv":
+            _write_csv(out, names, r.relative)
+        else:
+            np.savez_compressed(out, files=np.array(names), distance=r.distance,
+                                relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
+                                labels=np.array(labels if labels is not None else [], dtype=str),
+                                metric=args.metric, options=json.dumps(options),
+                                n_samples=args.samples, resolution=args.resolution, seed=args.seed)
+    if args.mds:
+        from .experiments.recognition import plot_mds
+
+        what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+        plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
+                 args.mds, names=[_stem(f) for f in names],
+                 title=f"MDS of {n} shapes, {args.metric}, {what}")
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+    print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric, {args.samples} samples per "
+          f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
+    width = max(len(f) for f in names)
+    for i, f in enumerate(names):
+        j = nearest[i]
+        mark = ""
+        if labels is not None and labels[j] != labels[i]:
+            mark = f"   <- another class ({labels[i]} vs {labels[j]})"
+        print(f"  {f:<{width}}  nearest {names[j]} ({r.relative[i, j]:.4%}; trimmed "
+              f"{r.trimmed[i, j]:.4%}){mark}")
+    if labels is not None:
+        if result["eer"] is None:
+            print("  labels: no equal error rate (needs two shapes of a class and two classes); "
+                  f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
+        else:
+            other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
+            print(f"  equal error rate {result['eer']:.2%} (ranked by the other: {other:.2%}), "
+                  f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
+    for f in outs:
+        print(f"  wrote {f}")
+    return 0
+
+
+def _cpus() -> int:
+    import os
+
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _write_csv(path: Path, names: list[str], matrix: np.ndarray) -> None:
+    import csv
+
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow([""] + names)
+        for name, row in zip(names, matrix):
+            w.writerow([name] + [repr(float(v)) for v in row])
+
+
 def _json_value(o):
     """numpy scalars and arrays (e.g. a weld's gaps) as JSON numbers and lists."""
     if hasattr(o, "tolist"):
@@ -451,6 +614,31 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_match)
+
+    q = sub.add_parser("pairwise", help="Gromov-Hausdorff distances between all pairs of a set of "
+                                        "shapes; nearest neighbours, EER and an MDS map")
+    q.add_argument("files", nargs="+", metavar="FILE", help="meshes (two or more)")
+    _add_metric_args(q)
+    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--jobs", type=_positive_int, default=None,
+                   help="worker processes for the pairs (default: the CPUs available)")
+    q.add_argument("--labels", default=None, metavar="L,L,...",
+                   help="the class of each file, in order: adds the equal error rate and the "
+                        "nearest-neighbour accuracy")
+    q.add_argument("--labels-from-names", action="store_true",
+                   help="classes from the file names without trailing digits (cat0.off -> cat)")
+    q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
+                   help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
+                        "correspondence (default, as gromov reproduce) or by the GH estimate")
+    q.add_argument("--out", default=None, metavar="FILE",
+                   help=".npz with all matrices, or .csv with the relative GH distances")
+    q.add_argument("--mds", default=None, metavar="FILE.png", help="draw a 2-D MDS map of the shapes")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_pairwise)
 
     q = sub.add_parser("perturb", help="topological noise: weld close parts, or punch holes")
     q.add_argument("kind", choices=("weld", "holes"))

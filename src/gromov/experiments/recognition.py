@@ -333,7 +333,7 @@ def plot_roc(roc_or_dict, path, *, title: str | None = None,
 
 
 def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
-             title: str | None = None,
+             title: str | None = None, names=None,
              figsize: tuple[float, float] = (5.0, 5.0), dpi: int = 100) -> Path:
     """Draw a two-dimensional MDS map of shapes, one colour per class, to a PNG file.
 
@@ -355,6 +355,8 @@ def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
     marked_label : str, default "marked"
         Legend entry of the crosses, e.g. ``"topological noise"``.
     title : str, optional
+    names : sequence of str, shape (n,), optional
+        Written beside each point (e.g. file names).
     figsize : (float, float), default (5, 5)
         Size in inches; the image is ``figsize * dpi`` pixels.
     dpi : int, default 100
@@ -367,8 +369,8 @@ def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
     Raises
     ------
     ValueError
-        If ``coords`` is not finite of shape (n, 2), or ``labels`` or ``marked`` is not of
-        length n (``marked`` boolean).
+        If ``coords`` is not finite of shape (n, 2), or ``labels``, ``marked`` or ``names``
+        is not of length n (``marked`` boolean).
     """
     x = np.asarray(coords, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 2:
@@ -384,6 +386,10 @@ def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
         if mk.shape != (n,) or mk.dtype != bool:
             raise ValueError(f"marked must be a boolean array of shape ({n},), "
                              f"got shape {mk.shape} and dtype {mk.dtype}")
+    if names is not None:
+        names = [str(a) for a in names]
+        if len(names) != n:
+            raise ValueError(f"names must have length n = {n}, got {len(names)}")
     _, first = np.unique(lab, return_index=True)
     classes = lab[np.sort(first)]
     fig = _figure(figsize, dpi)
@@ -400,6 +406,8 @@ def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
             ax.scatter(x[this & mk, 0], x[this & mk, 1], s=40, color=colour, marker="x")
     if np.any(mk):
         ax.scatter([], [], s=40, color="0.3", marker="x", label=marked_label)
+    for k, name in enumerate(names or ()):
+        ax.annotate(name, x[k], xytext=(3, 3), textcoords="offset points", fontsize="x-small")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xticks([])
     ax.set_yticks([])
