@@ -224,3 +224,44 @@ def test_holes_are_small_or_not_relative_to_their_own_component():
     # the diffusion metric's default filling judges each loop against its own component
     s = metric_solver(two, "diffusion")
     assert s.inner.n_vertices == two.n_vertices + 1
+
+
+def test_as_mesh_takes_arrays_and_mesh_objects():
+    import trimesh
+
+    from gromov.mesh import as_mesh
+
+    m = icosphere(1)
+    assert as_mesh(m) is m
+    for shape in ((m.vertices, m.faces), [m.vertices.tolist(), m.faces.tolist()],
+                  trimesh.Trimesh(m.vertices, m.faces, process=False)):
+        a = as_mesh(shape)
+        np.testing.assert_array_equal(a.vertices, m.vertices)
+        np.testing.assert_array_equal(a.faces, m.faces)
+        np.testing.assert_array_equal(a.input_ids, np.arange(m.n_vertices))
+    # repaired like a file: a duplicated vertex is merged, ids still index the given array
+    v = np.vstack([m.vertices, m.vertices[:1]])
+    f = m.faces.copy()
+    f[f == 0] = m.n_vertices          # every face of vertex 0 uses the duplicate instead
+    f[0, f[0] == m.n_vertices] = 0    # ... except the first: two copies in use
+    with pytest.warns(gromov.GromovWarning, match="merged"):
+        a = as_mesh((v, f), name="arrays")
+    assert a.n_vertices == m.n_vertices and set(a.input_ids) <= set(range(len(v)))
+    np.testing.assert_array_equal(v[a.input_ids], a.vertices)
+    with pytest.raises(TypeError, match="point cloud"):
+        as_mesh(gromov.PointCloud(m.vertices))
+    with pytest.raises(TypeError, match=r"\(vertices, faces\) pair.*got ndarray"):
+        as_mesh(m.vertices)
+    with pytest.raises(gromov.MeshError):
+        as_mesh((m.vertices, m.faces + 1000))
+
+
+def test_match_takes_arrays():
+    from gromov.shapes import grid, rolled_grid
+
+    x, y = grid(21, 11), rolled_grid(21, 11)
+    a = gromov.match(x, y, "geodesic", n_samples=15, resolution=None)
+    b = gromov.match((x.vertices, x.faces), (np.array(y.vertices), np.array(y.faces)), "geodesic",
+                     n_samples=15, resolution=None)
+    assert a.distance == b.distance
+    np.testing.assert_array_equal(a.x_to_y_vertex, b.x_to_y_vertex)

@@ -21,7 +21,7 @@ from . import _gmds_kernel as _kernel
 from ._project import project_points
 from .errors import GromovWarning
 from .gmds import SurfaceDistance, SurfacePoints, SymmetricGMDS, norm_value, parse_norm, trimmed_rms
-from .mesh import Mesh
+from .mesh import Mesh, as_mesh
 from .metrics import metric_solver
 from .orientation import orientation_agreements, outward_normals
 from .resolution import WorkingMesh, working_mesh
@@ -62,8 +62,9 @@ class ShapeMetric:
 
     Parameters
     ----------
-    shape : Mesh or str or os.PathLike
-        The input mesh (or a file to load).
+    shape : Mesh, str, os.PathLike, (vertices, faces) or an object with vertices and faces
+        The input mesh, a file to load, or arrays / a mesh object (``trimesh.Trimesh``...)
+        read by :func:`gromov.mesh.as_mesh`.
     metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
     resolution : int or None, default 3000
         Working mesh size (None: the input mesh as it is).
@@ -85,9 +86,7 @@ class ShapeMetric:
             from .io import load
 
             shape = load(shape)
-        if not isinstance(shape, Mesh):
-            raise TypeError(f"shape must be a Mesh or a mesh file, got {type(shape).__name__}")
-        self.input = shape
+        self.input = shape = as_mesh(shape)
         self.metric = metric
         self.metric_options = dict(metric_options or {})
         self.working = working if working is not None else working_mesh(shape, resolution)
@@ -656,8 +655,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
 
     Parameters
     ----------
-    X, Y : Mesh, path, or ShapeMetric
-        Shapes (a :class:`ShapeMetric` reuses its precomputed metric).
+    X, Y : Mesh, path, (vertices, faces), trimesh.Trimesh or ShapeMetric
+        Shapes (a :class:`ShapeMetric` reuses its precomputed metric; arrays and mesh objects
+        are read by :func:`gromov.mesh.as_mesh`, and the results' vertex ids index them).
     metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
     n_samples : int, default 100
         Farthest point samples per shape.

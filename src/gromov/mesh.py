@@ -24,7 +24,8 @@ from scipy.sparse.csgraph import connected_components
 
 from .errors import GromovWarning, MeshError
 
-__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "component_areas", "as_vertices", "as_faces"]
+__all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "component_areas", "as_vertices",
+           "as_faces", "as_mesh"]
 
 logger = logging.getLogger(__name__)
 
@@ -615,3 +616,46 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     filled = Mesh(np.vstack([V, centres]), np.vstack([F, *fans]),
                   input_ids=np.r_[mesh.input_ids, first + np.arange(len(centres))])
     return filled, len(centres)
+
+
+def as_mesh(shape, *, name: str = "shape") -> Mesh:
+    """A :class:`Mesh` from what users hold a triangle mesh in.
+
+    Parameters
+    ----------
+    shape : Mesh, (vertices, faces) or an object with ``vertices`` and ``faces``
+        A :class:`Mesh` is returned as it is. A pair of arrays ``(vertices (n, 3), faces
+        (m, 3))`` or an object with such attributes (``trimesh.Trimesh``, Open3D's
+        ``TriangleMesh`` via ``np.asarray``, ...) is validated and then repaired like a file
+        read by :func:`gromov.load` (:func:`repair`: duplicate vertices merged, degenerate
+        faces dropped, with a warning); ``input_ids`` index the given vertex array, so
+        results refer to it.
+    name : str, default "shape"
+        Used in error messages and repair warnings.
+
+    Returns
+    -------
+    Mesh
+
+    Raises
+    ------
+    TypeError
+        If ``shape`` is none of these (e.g. a point cloud: matching needs faces).
+    MeshError
+        If the arrays are not a valid triangle mesh.
+    """
+    if isinstance(shape, Mesh):
+        return shape
+    if isinstance(shape, PointCloud):
+        raise TypeError(f"{name} is a point cloud; a triangle mesh (vertices and faces) is needed")
+    if isinstance(shape, (tuple, list)) and len(shape) == 2:
+        vertices, faces = shape
+    elif hasattr(shape, "vertices") and hasattr(shape, "faces"):
+        vertices, faces = shape.vertices, shape.faces
+    elif hasattr(shape, "vertices") and hasattr(shape, "triangles"):  # Open3D
+        vertices, faces = shape.vertices, shape.triangles
+    else:
+        raise TypeError(f"{name} must be a gromov Mesh, a mesh file, a (vertices, faces) pair or an "
+                        f"object with vertices and faces, got {type(shape).__name__}")
+    mesh = Mesh(np.asarray(vertices), np.asarray(faces))
+    return repair(mesh, source=name)[0]
