@@ -345,3 +345,33 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     # labels given by hand; one label per class only: no EER, said so
     assert main([*base, "--labels", "a,b,c,d"]) == 0
     assert "no equal error rate" in capsys.readouterr().out
+
+
+def test_match_plot_draws_the_correspondence(tmp_path, capsys, monkeypatch):
+    """--plot colours X's sample cells and the cells around their images on Y alike: on a
+    sheet and its isometric roll, each image's cell is (nearly) the sample's own cell."""
+    from gromov.experiments import report
+    from gromov.shapes import grid, rolled_grid
+
+    x, y = tmp_path / "flat.off", tmp_path / "rolled.off"
+    gromov.save(grid(21, 11), x)
+    gromov.save(rolled_grid(21, 11), y)
+    seen = {}
+    draw = report.plot_correspondence
+    monkeypatch.setattr(report, "plot_correspondence",
+                        lambda xm, ym, xl, yl, path, **kw: seen.update(xl=xl, yl=yl) or draw(
+                            xm, ym, xl, yl, path, **kw))
+    png = tmp_path / "c.png"
+    assert main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "-q",
+                 "--plot", str(png), "--seed", "1", "--resolution", "1000"]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    xl, yl = seen["xl"], seen["yl"]
+    assert set(xl) == set(range(20)) == set(yl)          # every sample has a cell on both
+    # same numbering, isometric: up to the sheet's symmetries the cells agree vertex by vertex
+    u, w = np.divmod(np.arange(231), 11)
+    best = max(np.mean(xl[(a * 11 + b)] == yl) for a, b in
+               ((u, w), (20 - u, w), (u, 10 - w), (20 - u, 10 - w)))
+    assert best > 0.8
+    r = subprocess.run([sys.executable, "-m", "gromov", "match", str(x), str(y), "--plot",
+                        str(tmp_path / "no" / "c.png")], capture_output=True, text=True)
+    assert r.returncode == 2 and "does not exist" in r.stderr.splitlines()[-1]

@@ -246,6 +246,14 @@ def cmd_match(args) -> int:
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working mesh of {path}")
+    if args.plot:
+        plot = Path(args.plot)
+        if plot.parent and not plot.parent.exists():
+            raise _UserError(f"output folder {plot.parent} does not exist")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise _UserError("--plot needs matplotlib: pip install 'gromov[plot]'") from None
     with _progress(2, "metrics", args.quiet or args.json) as bar:
         for s in shapes:
             s.distances
@@ -258,6 +266,8 @@ def cmd_match(args) -> int:
         if out.parent and not out.parent.exists():
             raise _UserError(f"output folder {out.parent} does not exist")
         np.savez_compressed(out, **r.arrays())
+    if args.plot:
+        _plot_match(r, shapes, args)
     if args.json:   # the metric's options too: the distance's units depend on them
         print(json.dumps({**r.to_dict(), "metric_options": _metric_options(args)}))
     else:
@@ -438,6 +448,25 @@ def _write_csv(path: Path, names: list[str], matrix: np.ndarray) -> None:
             w.writerow([name] + [repr(float(v)) for v in row])
 
 
+def _plot_match(r, shapes, args) -> None:
+    """``gromov match --plot``: the cells of X's samples and, in the same colours, the cells
+    around their images on Y (each by the match's metric on the working meshes), as in the
+    correspondence figures of Bronstein et al. (IJCV 2010, §5)."""
+    from .experiments.report import plot_correspondence, voronoi_labels
+
+    sx, sy = shapes
+
+    def working(s, ids):   # input-file ids -> nearest working vertices
+        return s.working.from_source(s.working.source.from_input_ids(ids))
+
+    x_labels = voronoi_labels(sx.distances[working(sx, r.x_samples)])
+    y_labels = voronoi_labels(sy.distances[working(sy, r.x_to_y_vertex)])
+    plot_correspondence(sx.mesh, sy.mesh, x_labels, y_labels, args.plot,
+                        titles=(Path(args.x).name, Path(args.y).name),
+                        title=f"{args.metric}: cells of the samples of {Path(args.x).name} carried "
+                              f"to {Path(args.y).name} (relative GH {r.relative_distance:.2%})")
+
+
 def _json_value(o):
     """numpy scalars and arrays (e.g. a weld's gaps) as JSON numbers and lists."""
     if hasattr(o, "tolist"):
@@ -612,6 +641,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
+    q.add_argument("--plot", default=None, metavar="FILE.png",
+                   help="draw the correspondence: the cells of X's samples and, in the same "
+                        "colours, the cells around their images on Y")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_match)
 
