@@ -336,6 +336,8 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "4 shapes, 6 pairs, geodesic metric" in out and "equal error rate 0.00%" in out
     assert "another class" not in out
+    assert "false acceptances (pairs of classes): none; false rejections (within a class): none" in out
+    assert res["errors_at_eer"]["false_accept"] == {} and res["errors_at_eer"]["far"] == 0.0
     import csv
 
     with open(csv_path, newline="") as fh:

@@ -171,6 +171,41 @@ def _pairwise(x):
     return np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
 
 
+def test_errors_at_names_the_confused_classes():
+    """Three classes; only b and c overlap: b2 is closer to c0 than to its own class."""
+    from gromov.experiments.recognition import errors_at
+
+    lab = ["a", "a", "b", "b", "b", "c", "c"]
+    pos = np.array([0.0, 0.1, 5.0, 5.2, 6.4, 6.0, 6.1])     # points on a line
+    D = np.abs(pos[:, None] - pos[None, :])
+    r = roc(D, lab)
+    e = errors_at(D, lab, r.eer_threshold)
+    assert e["threshold"] == r.eer_threshold
+    assert set(e["false_accept"]) <= {"b / c"} and "a / b" not in e["false_accept"]
+    # counts agree with the rates of the ROC at that threshold
+    k = int(np.searchsorted(r.thresholds, r.eer_threshold))
+    fa = sum(v[0] for v in e["false_accept"].values())
+    fr = sum(v[0] for v in e["false_reject"].values())
+    assert e["far"] == pytest.approx(r.far[k]) == pytest.approx(fa / r.n_negative)
+    assert e["frr"] == pytest.approx(r.frr[k]) == pytest.approx(fr / r.n_positive)
+    assert e["false_accept"]["b / c"][1] == 6    # 3 x 2 cross pairs
+    # hand count at t = 0.25: no false acceptance (the closest b-c pair is at 0.3); b's
+    # pairs at 1.2 and 1.4 rejected
+    e = errors_at(D, lab, 0.25)
+    assert e["false_accept"] == {} and e["far"] == 0.0
+    assert e["false_reject"] == {"b": [2, 3]} and e["frr"] == pytest.approx(2 / 5)
+    # at t = 0.5: b4-c0 (0.4), b4-c1 (0.3) accepted; at 1.3 all six b-c pairs, and only
+    # b0-b4 (1.4) rejected
+    assert errors_at(D, lab, 0.5)["false_accept"] == {"b / c": [2, 6]}
+    e = errors_at(D, lab, 1.3)
+    assert e["false_accept"] == {"b / c": [6, 6]} and e["false_reject"] == {"b": [1, 3]}
+    mask = np.zeros((7, 7), bool)
+    mask[0, 1] = mask[1, 0] = True
+    assert errors_at(D, lab, 0.05, mask=mask)["false_reject"] == {"a": [1, 1]}
+    with pytest.raises(ValueError, match="labels"):
+        errors_at(D, lab[:3], 1.0)
+
+
 def test_mds_recovers_a_planar_configuration():
     x = np.random.default_rng(0).normal(size=(15, 2)) * [3.0, 1.0]
     d = _pairwise(x)

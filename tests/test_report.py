@@ -123,7 +123,10 @@ def _results(figures):
            "classes": [c for c in classes for _ in range(3)],
            "perturbed": [i > 0 for _ in classes for i in range(3)],
            "geodesic": {"eer": 0.3361, "nn_accuracy": 0.9, "ranked_by": "trimmed", "eer_gh": 0.4012},
-           "diffusion": {"eer": 0.1734, "nn_accuracy": 0.95, "ranked_by": "trimmed", "eer_gh": 0.2222}}
+           "diffusion": {"eer": 0.1734, "nn_accuracy": 0.95, "ranked_by": "trimmed", "eer_gh": 0.2222,
+                         "errors_at_eer": {"threshold": 0.01, "false_accept": {"cat / dog": [3, 9]},
+                                           "false_reject": {"dog": [1, 3], "cat": [1, 3]},
+                                           "far": 0.11, "frr": 0.22}}}
     by_class = {c: {"clean": 0.02 + 0.01 * k, "weld": 0.03 + 0.01 * k, "holes": 0.04}
                 for k, c in enumerate(classes)}
     return {
@@ -192,6 +195,11 @@ def test_write_report_full(figure_dir):
     # the handles per kid are a column of the per-shape table, not a metric
     assert not re.search(r"measure\s+diffusion\s+geodesic\s+handles", text)
     assert re.search(r"shape\s+diffusion\s+geodesic\s+handles\s+kid01\s+0.0800\s+0.1100\s+4.5", text)
+    # where the errors are, for the runs that say it
+    assert re.search(r"Experiment 1 \(welds\), diffusion: false acceptances \(pairs of classes\): "
+                     r"cat / dog 3 of 9; false rejections \(within a class\): dog 1 of 3, cat 1 of 3",
+                     text)
+    assert "geodesic: false acceptances" not in text
     # captions, figures embedded, a missing one noted
     assert "ROC, Experiment 1 (welds)" in text
     assert "Correspondence, diffusion, welds" in text

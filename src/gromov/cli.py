@@ -325,7 +325,7 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
 
 def cmd_pairwise(args) -> int:
     from .experiments.pairwise import gh_matrix
-    from .experiments.recognition import mds_map, roc
+    from .experiments.recognition import errors_at, mds_map, roc
 
     n = len(args.files)
     if n < 2:
@@ -385,6 +385,8 @@ def cmd_pairwise(args) -> int:
         result["eer"] = None if curves is None else curves[args.rank_by].eer
         result["eer_gh"] = None if curves is None else curves["gh"].eer
         result["eer_trimmed"] = None if curves is None else curves["trimmed"].eer
+        result["errors_at_eer"] = None if curves is None else errors_at(
+            D, lab, curves[args.rank_by].eer_threshold)
     if args.out:
         out = Path(args.out)
         if out.suffix == ".csv":
@@ -424,6 +426,9 @@ def cmd_pairwise(args) -> int:
             other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
             print(f"  equal error rate {result['eer']:.2%} (ranked by the other: {other:.2%}), "
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
+            from .experiments.report import errors_text
+
+            print(f"  at its threshold: {errors_text(result['errors_at_eer'])}")
     for f in outs:
         print(f"  wrote {f}")
     return 0

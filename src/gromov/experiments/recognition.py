@@ -11,6 +11,7 @@ are also shown as two-dimensional classical MDS maps (their Figs. 4-5), where a 
 draws tight, separated clusters of classes.
 
 - :func:`roc` and :func:`equal_error_rate` compute the exact ROC curve and the EER;
+  :func:`errors_at` says which classes the errors at a threshold come from;
 - :func:`mds_map` embeds a distance matrix in the plane (classical, Torgerson MDS);
 - :func:`plot_roc` and :func:`plot_mds` draw them to PNG files (needs ``gromov[plot]``).
 """
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ROC", "roc", "equal_error_rate", "mds_map", "plot_roc", "plot_mds"]
+__all__ = ["ROC", "roc", "equal_error_rate", "errors_at", "mds_map", "plot_roc", "plot_mds"]
 
 logger = logging.getLogger(__name__)
 
@@ -194,6 +195,70 @@ def equal_error_rate(distances, labels, *, mask=None, pairs: str = "upper") -> f
     See :func:`roc` for the definition, the parameters and the errors raised.
     """
     return roc(distances, labels, mask=mask, pairs=pairs).eer
+
+
+def errors_at(distances, labels, threshold: float, *, mask=None) -> dict:
+    """Where the errors of a threshold come from: false acceptances by pair of classes and
+    false rejections by class.
+
+    At threshold ``t`` (e.g. :attr:`ROC.eer_threshold`) a pair of different classes ``a, b``
+    with ``D[i, j] <= t`` is a false acceptance and a pair of the same class with
+    ``D[i, j] > t`` a false rejection (the trials of :func:`roc`, unordered pairs). Their
+    counts per class pair and per class tell, for instance, whether an equal error rate
+    comes from one pair of similar classes.
+
+    Parameters
+    ----------
+    distances, labels, mask
+        As in :func:`roc`.
+    threshold : float
+
+    Returns
+    -------
+    dict
+        ``threshold``; ``false_accept``: ``{"a / b": [errors, pairs]}`` over the class pairs
+        with at least one error, classes in order of first appearance, most errors first;
+        ``false_reject``: ``{"a": [errors, pairs]}`` likewise; ``far`` and ``frr``: the
+        rates at ``threshold``.
+    """
+    d = _check_distances(distances)
+    n = d.shape[0]
+    lab = _check_labels(labels, n)
+    t = float(threshold)
+    sel = np.triu(np.ones((n, n), dtype=bool), k=1)
+    if mask is not None:
+        m = np.asarray(mask)
+        if m.shape != (n, n) or m.dtype != bool:
+            raise ValueError(f"mask must be a boolean (n, n) = ({n}, {n}) array, "
+                             f"got shape {m.shape} and dtype {m.dtype}")
+        sel &= m
+    _, first = np.unique(lab, return_index=True)
+    order = {c: k for k, c in enumerate(lab[np.sort(first)].tolist())}
+    fa: dict = {}
+    fr: dict = {}
+    n_fa = n_fr = n_neg = n_pos = 0
+    for i, j in zip(*np.nonzero(sel)):
+        a, b = sorted((lab[i].item(), lab[j].item()), key=order.__getitem__)
+        if a == b:
+            n_pos += 1
+            e = fr.setdefault(str(a), [0, 0])
+            wrong = bool(d[i, j] > t)
+            n_fr += wrong
+        else:
+            n_neg += 1
+            e = fa.setdefault(f"{a} / {b}", [0, 0])
+            wrong = bool(d[i, j] <= t)
+            n_fa += wrong
+        e[0] += int(wrong)
+        e[1] += 1
+
+    def worst_first(table):
+        items = [(k, v) for k, v in table.items() if v[0] > 0]
+        return dict(sorted(items, key=lambda kv: -kv[1][0]))   # stable: class order on ties
+
+    return {"threshold": t, "false_accept": worst_first(fa), "false_reject": worst_first(fr),
+            "far": float(n_fa / n_neg) if n_neg else None,
+            "frr": float(n_fr / n_pos) if n_pos else None}
 
 
 def mds_map(distances, dim: int = 2, *, seed: int = 0) -> np.ndarray:

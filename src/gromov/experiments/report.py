@@ -558,6 +558,34 @@ def _recognition_sets(results: Mapping) -> str:
     return "<ul>\n" + "\n".join(items) + "\n</ul>" if items else ""
 
 
+def _error_counts(table) -> str:
+    if not isinstance(table, Mapping) or not table:
+        return "none"
+    return ", ".join(f"{k} {v[0]} of {v[1]}" for k, v in table.items()
+                     if isinstance(v, (list, tuple)) and len(v) == 2)
+
+
+def errors_text(errors: Mapping) -> str:
+    """One line on where the errors at a threshold are (:func:`recognition.errors_at`)."""
+    return (f"false acceptances (pairs of classes): {_error_counts(errors.get('false_accept'))}; "
+            f"false rejections (within a class): {_error_counts(errors.get('false_reject'))}")
+
+
+def _error_sources(results: Mapping) -> str:
+    """Which classes the errors at each EER threshold come from."""
+    items = []
+    for exp in _EXPERIMENTS:
+        for metric in _METRIC_ORDER:
+            e = _get(results, "recognition", exp, metric, "errors_at_eer")
+            if isinstance(e, Mapping):
+                items.append(f"<li>{_esc(_EXPERIMENTS[exp])}, {_esc(metric)}: "
+                             f"{_esc(errors_text(e))}</li>")
+    if not items:
+        return ""
+    return ("<p>Where the errors are, at the threshold of each equal error rate (counts of "
+            "pairs):</p>\n<ul>\n" + "\n".join(items) + "\n</ul>")
+
+
 def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str, list[str]]:
     rows, worse = _recognition_rows(results)
     parts = ["<h2>Recognition</h2>"]
@@ -591,6 +619,7 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
         if not other:
             rows = [row[:-1] for row in rows]
         parts.append(_table(head + ((other,) if other else ()), rows))
+        parts.append(_error_sources(results))
     parts.append(_figures_html(out_dir, figures, "recognition"))
     return "\n".join(p for p in parts if p), worse
 

@@ -52,7 +52,7 @@ from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..resolution import WorkingMesh, simplify
 from . import datasets
 from .pairwise import gh_matrix, match_pairs, prepare
-from .recognition import mds_map, plot_mds, plot_roc, roc
+from .recognition import errors_at, mds_map, plot_mds, plot_roc, roc
 
 __all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS", "RANK_BY"]
 
@@ -411,6 +411,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
             "eer_trimmed": float(rocs["trimmed"].eer),
             "eer_perturbed_pairs": float(roc(D, labels, mask=mask).eer) if perturbed.any() else None,
             "nn_accuracy": float(np.mean(nn == labels)),
+            "errors_at_eer": errors_at(D, labels, curve.eer_threshold),
             "confusions": [f"{items[i].label}->{nn[i]}" for i in range(len(items)) if nn[i] != labels[i]],
             "relative": r.relative.round(6).tolist(),
             "trimmed": r.trimmed.round(6).tolist(),
