@@ -85,6 +85,19 @@ def test_recognition_statistics_summarise_the_off_diagonal_residuals():
     assert s["l1"] == pytest.approx((40 * 4 + 380 * 0.1) / 420)
     assert s["trim90"] == pytest.approx(0.1)   # 378 of 420 kept: the 40 bad ones are out
     assert s["trim95"] > 0.1                   # 399 kept: 19 bad ones are in
+    # setting one sample of 21 aside (95% keeps 20) removes the whole bad row; the diagonal's
+    # 7.0 never counts
+    assert rs.sample_trimmed_rms(e, 0.95) == pytest.approx(0.1)
+    assert rs.sample_trimmed_rms(e, 1.0) == pytest.approx(s["gh"])
+    assert s["strim90"] == pytest.approx(0.1) and s["strim60"] == pytest.approx(0.1)
+
+
+def test_recognition_statistics_margin():
+    rs = _module("recognition_statistics")
+    D, lab = _by_class(["a", "a", "b", "b"], 1.0, 3.0)
+    assert rs.margin(D, lab) == 3.0
+    D[0, 2] = D[2, 0] = 0.5            # one different-class pair closer than the classes
+    assert rs.margin(D, lab) == 0.5
 
 
 def test_weld_contact_pinch_merges_and_keeps_input_ids():
