@@ -100,6 +100,12 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
           "--out", "{tmp}/x.npz"], "--refine applies to --metric geodesic"),
         (["pairwise", "{sphere}"], "at least two meshes"),
         (["pairwise", "{sphere}", "{sphere}"], "a file is given twice"),
+        (["pairwise", "{sphere}", "{tmp}/./s.off"], "a file is given twice"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "{fixtures}/tetra_ascii.stl",
+          "--mds", "{tmp}/m.svg"], "--mds writes a PNG image"),
+        (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--out", "{tmp}/d.csv/x.npz"],
+         "does not exist"),
+        (["match", "{sphere}", "{sphere}", "--plot", "{tmp}/c.jpg"], "--plot writes a PNG image"),
         (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a"],
          "one non-empty label per file (2), got 1"),
         (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a,b",
@@ -289,6 +295,14 @@ def test_class_from_name():
     assert class_from_name("/x/kid_12.PLY") == "kid"
     assert class_from_name("shape.obj") == "shape"
     assert class_from_name("123.off") == "123"   # nothing left: the whole stem
+    assert class_from_name("ball,1.off") == "ball"
+
+
+def test_short_names_tell_equal_stems_apart():
+    from gromov.cli import _short_names
+
+    assert _short_names(["a/cat0.off", "b/cat1.ply"]) == ["cat0", "cat1"]
+    assert _short_names(["x/a/long1.off", "x/b/long1.off", "c/dog.off"]) == ["a/long1", "b/long1", "dog"]
 
 
 def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
@@ -330,6 +344,8 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     np.testing.assert_array_equal(z["relative_trimmed_distance"], trim)
     np.testing.assert_array_equal(z["distance"], np.array(res["distance"]))
     assert str(z["metric"]) == "geodesic" and int(z["n_samples"]) == 20
+    assert str(z["ranked_by"]) == "trimmed" and list(z["nearest"]) == res["nearest"]
+    assert float(z["eer"]) == 0.0
     assert png.stat().st_size > 1000
     # the same run (deterministic) as CSV, and the summary for people
     assert main([*argv, "--out", str(csv_path)]) == 0
@@ -342,8 +358,9 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
 
     with open(csv_path, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == [""] + names and [r[0] for r in rows[1:]] == names
-    np.testing.assert_array_equal(np.array([r[1:] for r in rows[1:]], dtype=float), rel)
+    # the CSV holds the matrix the results rank by (trimmed by default), named in its corner
+    assert rows[0] == ["relative_trimmed_distance"] + names and [r[0] for r in rows[1:]] == names
+    np.testing.assert_array_equal(np.array([r[1:] for r in rows[1:]], dtype=float), trim)
     # labels given by hand; one label per class only: no EER, said so
     assert main([*base, "--labels", "a,b,c,d"]) == 0
     assert "no equal error rate" in capsys.readouterr().out

@@ -483,3 +483,39 @@ def test_forked_single_thread_workers_take_the_serial_kernel(sphere3_solver):
                              initializer=_one_thread_per_worker) as ex:
         child = ex.submit(_rows_in_a_forked_worker, sphere3_solver, src).result(timeout=120)
     np.testing.assert_array_equal(child, parent)
+
+
+@pytest.mark.parametrize("n", [1, 2, 63, 64, 65, 130])
+def test_symmetrise_inplace_is_the_numpy_expression(n):
+    """Parallel and serial kernels give exactly 0.5 * (D + D.T) with a zero diagonal, at sizes
+    around the block size, and on a non-contiguous view; bad input is refused."""
+    from numba import get_num_threads, set_num_threads
+
+    from gromov.metrics._base import symmetrise_inplace
+
+    rng = np.random.default_rng(n)
+    d = rng.random((n, n))
+    want = 0.5 * (d + d.T)
+    np.fill_diagonal(want, 0.0)
+    threads = get_num_threads()
+    try:
+        for t in sorted({1, threads}):
+            set_num_threads(t)
+            e = d.copy()
+            symmetrise_inplace(e)
+            np.testing.assert_array_equal(e, want)
+            big = np.zeros((n, 2 * n))
+            big[:, ::2] = d
+            view = big[:, ::2]
+            symmetrise_inplace(view)
+            np.testing.assert_array_equal(view, want)
+    finally:
+        set_num_threads(threads)
+    with pytest.raises(ValueError, match="floating-point"):
+        symmetrise_inplace(np.ones((3, 3), dtype=np.int64))
+    ro = d.copy()
+    ro.flags.writeable = False
+    with pytest.raises(ValueError, match="read-only"):
+        symmetrise_inplace(ro)
+    with pytest.raises(ValueError, match="square"):
+        symmetrise_inplace(np.ones((2, 3)))

@@ -254,6 +254,8 @@ def test_as_mesh_takes_arrays_and_mesh_objects():
         as_mesh(m.vertices)
     with pytest.raises(gromov.MeshError):
         as_mesh((m.vertices, m.faces + 1000))
+    with pytest.raises(gromov.MeshError, match="ragged: vertices and faces must be arrays"):
+        as_mesh(([[0, 0, 0], [1, 0]], [[0, 1, 2]]), name="ragged")
 
 
 def test_match_takes_arrays():

@@ -204,6 +204,9 @@ def test_errors_at_names_the_confused_classes():
     assert errors_at(D, lab, 0.05, mask=mask)["false_reject"] == {"a": [1, 1]}
     with pytest.raises(ValueError, match="labels"):
         errors_at(D, lab[:3], 1.0)
+    # labels of any type roc() takes, e.g. an object array
+    obj = np.array(lab, dtype=object)
+    assert errors_at(D, obj, 1.3) == errors_at(D, lab, 1.3)
 
 
 def test_mds_recovers_a_planar_configuration():

@@ -247,9 +247,7 @@ def cmd_match(args) -> int:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working mesh of {path}")
     if args.plot:
-        plot = Path(args.plot)
-        if plot.parent and not plot.parent.exists():
-            raise _UserError(f"output folder {plot.parent} does not exist")
+        _check_png(args.plot, "--plot")
         try:
             import matplotlib  # noqa: F401
         except ImportError:
@@ -282,6 +280,9 @@ def cmd_match(args) -> int:
             kind = ("keeps the orientation" if r.orientation > 0.5 else
                     "reverses the orientation (a mirror image)")
             print(f"  the map {kind}: {r.orientation:.0%} of small sample triangles keep their sense of rotation")
+        for f in (args.out, args.plot):
+            if f:
+                print(f"  wrote {f}")
     return 0
 
 
@@ -305,8 +306,32 @@ def class_from_name(path: str) -> str:
     separators (``cat0.off.gz`` -> ``cat``, ``kid_12.ply`` -> ``kid``); the whole stem when
     nothing is left."""
     stem = _stem(path)
-    cls = stem.rstrip("0123456789").rstrip("-_. ")
+    cls = stem.rstrip("0123456789").rstrip("-_., ")
     return cls or stem
+
+
+def _short_names(paths: list[str]) -> list[str]:
+    """Names to draw beside the shapes: the file stems, or, where two stems are equal, the
+    shortest trailing parts of the paths that tell them apart."""
+    parts = [Path(p).parts[:-1] + (_stem(p),) for p in paths]
+    names = []
+    for i, pp in enumerate(parts):
+        for k in range(1, len(pp) + 1):
+            tail = pp[-k:]
+            if all(q[-k:] != tail for j, q in enumerate(parts) if j != i):
+                break
+        names.append("/".join(tail))
+    return names
+
+
+def _check_png(path: str, option: str) -> None:
+    p = Path(path)
+    if p.suffix.lower() != ".png":
+        raise _UserError(f"{option} writes a PNG image: give a file name ending in .png, got {path!r}")
+    if p.is_dir():
+        raise _UserError(f"{option} {path} is a folder")
+    if p.parent and not p.parent.exists():
+        raise _UserError(f"output folder {p.parent} does not exist")
 
 
 def _pairwise_labels(args, n: int) -> list[str] | None:
@@ -330,17 +355,23 @@ def cmd_pairwise(args) -> int:
     n = len(args.files)
     if n < 2:
         raise _UserError("pairwise needs at least two meshes")
-    if len(set(args.files)) < n:
-        dup = sorted({f for f in args.files if args.files.count(f) > 1})
+    import os
+
+    real = [os.path.realpath(f) for f in args.files]
+    if len(set(real)) < n:
+        dup = sorted({f for f, r in zip(args.files, real) if real.count(r) > 1})
         raise _UserError(f"a file is given twice: {', '.join(dup)}")
     labels = _pairwise_labels(args, n)
     outs = [Path(f) for f in (args.out, args.mds) if f]
-    for out in outs:
-        if out.parent and not out.parent.exists():
-            raise _UserError(f"output folder {out.parent} does not exist")
-    if args.out and not args.out.endswith((".npz", ".csv")):
-        raise _UserError(f"--out must end in .npz or .csv, got {args.out!r}")
+    if args.out:
+        if not args.out.endswith((".npz", ".csv")):
+            raise _UserError(f"--out must end in .npz or .csv, got {args.out!r}")
+        if Path(args.out).is_dir():
+            raise _UserError(f"--out {args.out} is a folder")
+        if Path(args.out).parent and not Path(args.out).parent.exists():
+            raise _UserError(f"output folder {Path(args.out).parent} does not exist")
     if args.mds:
+        _check_png(args.mds, "--mds")
         if n < 3:
             raise _UserError("--mds needs at least three shapes")
         try:
@@ -378,10 +409,10 @@ def cmd_pairwise(args) -> int:
     if labels is not None:
         lab = np.array(labels)
         result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
-        try:
+        same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
+        curves = None   # all one class, or every shape its own: no EER
+        if same.any() and not same.all():
             curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
-        except ValueError:   # all one class, or every shape its own
-            curves = None
         result["eer"] = None if curves is None else curves[args.rank_by].eer
         result["eer_gh"] = None if curves is None else curves["gh"].eer
         result["eer_trimmed"] = None if curves is None else curves["trimmed"].eer
@@ -389,12 +420,16 @@ def cmd_pairwise(args) -> int:
             D, lab, curves[args.rank_by].eer_threshold)
     if args.out:
         out = Path(args.out)
-        if out.suffix == ".csv":
-            _write_csv(out, names, r.relative)
+        if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
+            _write_csv(out, names, D, "relative_trimmed_distance" if args.rank_by == "trimmed"
+                       else "relative_distance")
         else:
+            nan = float("nan")
             np.savez_compressed(out, files=np.array(names), distance=r.distance,
                                 relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
                                 labels=np.array(labels if labels is not None else [], dtype=str),
+                                ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
+                                eer=nan if result.get("eer") is None else result["eer"],
                                 metric=args.metric, options=json.dumps(options),
                                 n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
@@ -402,7 +437,7 @@ def cmd_pairwise(args) -> int:
 
         what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
         plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
-                 args.mds, names=[_stem(f) for f in names],
+                 args.mds, names=_short_names(names),
                  title=f"MDS of {n} shapes, {args.metric}, {what}")
     if args.json:
         print(json.dumps(result))
@@ -443,12 +478,12 @@ def _cpus() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _write_csv(path: Path, names: list[str], matrix: np.ndarray) -> None:
+def _write_csv(path: Path, names: list[str], matrix: np.ndarray, what: str) -> None:
     import csv
 
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow([""] + names)
+        w.writerow([what] + names)
         for name, row in zip(names, matrix):
             w.writerow([name] + [repr(float(v)) for v in row])
 
@@ -671,7 +706,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
                         "correspondence (default, as gromov reproduce) or by the GH estimate")
     q.add_argument("--out", default=None, metavar="FILE",
-                   help=".npz with all matrices, or .csv with the relative GH distances")
+                   help=".npz with all matrices, or .csv with the matrix the results rank by "
+                        "(named in its first cell)")
     q.add_argument("--mds", default=None, metavar="FILE.png", help="draw a 2-D MDS map of the shapes")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

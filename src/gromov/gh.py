@@ -636,11 +636,13 @@ def pairs_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np
 
 
 # ----------------------------------------------------------------------------- match
-def _as_shape(s, metric, resolution, metric_options) -> ShapeMetric:
+def _as_shape(s, metric, resolution, metric_options, name: str) -> ShapeMetric:
     if isinstance(s, ShapeMetric):
         if s.metric != metric:
             raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
         return s
+    if not isinstance(s, (str, os.PathLike)):
+        s = as_mesh(s, name=name)   # arrays and mesh objects: errors and warnings name X or Y
     return ShapeMetric(s, metric, resolution=resolution, metric_options=metric_options)
 
 
@@ -759,8 +761,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
                          f"{coarse_stages!r}") from None
     if not coarse_stages or any(c < 1 or (k is not None and k < 1) for c, k in coarse_stages):
         raise ValueError(f"coarse_stages must be non-empty pairs of positive sizes, got {coarse_stages!r}")
-    sx = _as_shape(X, metric, resolution, metric_options)
-    sy = _as_shape(Y, metric, resolution, metric_options)
+    sx = _as_shape(X, metric, resolution, metric_options, "X")
+    sy = _as_shape(Y, metric, resolution, metric_options, "Y")
     for name, s in (("X", sx), ("Y", sy)):
         if n_samples > s.mesh.n_vertices:
             raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")

@@ -657,5 +657,9 @@ def as_mesh(shape, *, name: str = "shape") -> Mesh:
     else:
         raise TypeError(f"{name} must be a gromov Mesh, a mesh file, a (vertices, faces) pair or an "
                         f"object with vertices and faces, got {type(shape).__name__}")
-    mesh = Mesh(np.asarray(vertices), np.asarray(faces))
-    return repair(mesh, source=name)[0]
+    try:
+        vertices, faces = np.asarray(vertices), np.asarray(faces)
+    except (TypeError, ValueError) as exc:   # ragged nested lists and the like
+        raise MeshError(f"{name}: vertices and faces must be arrays of shape (n, 3) and (m, 3): "
+                        f"{exc}") from None
+    return repair(Mesh(vertices, faces), source=name)[0]

@@ -237,8 +237,9 @@ def errors_at(distances, labels, threshold: float, *, mask=None) -> dict:
     fa: dict = {}
     fr: dict = {}
     n_fa = n_fr = n_neg = n_pos = 0
+    labs = lab.tolist()
     for i, j in zip(*np.nonzero(sel)):
-        a, b = sorted((lab[i].item(), lab[j].item()), key=order.__getitem__)
+        a, b = sorted((labs[i], labs[j]), key=order.__getitem__)
         if a == b:
             n_pos += 1
             e = fr.setdefault(str(a), [0, 0])

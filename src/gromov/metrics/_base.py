@@ -57,12 +57,16 @@ def symmetrise_inplace(D: np.ndarray) -> None:
 
     The same floating-point values as ``0.5 * (D + D.T)`` (each pair is summed once and
     written to both places), without the two ``(n, n)`` temporaries and the strided
-    transpose read: about 25x faster at n = 3,000. ``D`` must be a square C-contiguous
-    float64 array. With one numba thread (as in forked worker processes, where entering
+    transpose read: about 25x faster at n = 3,000. ``D``: a square, writeable
+    floating-point array in any memory layout (an integer or read-only one raises
+    ``ValueError``). With one numba thread (as in forked worker processes, where entering
     the threading layer after the parent used it aborts the child) the serial kernel runs.
     """
     if D.ndim != 2 or D.shape[0] != D.shape[1]:
         raise ValueError(f"expected a square matrix, got shape {D.shape}")
+    if not np.issubdtype(D.dtype, np.floating) or not D.flags.writeable:
+        raise ValueError(f"expected a writeable floating-point matrix, got dtype {D.dtype}"
+                         f"{'' if D.flags.writeable else ', read-only'}")
     if get_num_threads() > 1 and D.shape[0] > _SYM_BLOCK:
         _symmetrise_parallel(D)
     else:
