@@ -17,7 +17,7 @@ rate of each ranking is printed:
 - ``l1``: mean absolute residual, ``median``: median absolute residual;
 - ``trimK``: RMS of the best-fitting K% of the pairs (:func:`gromov.gmds.trimmed_rms`);
 - ``strimK``: RMS over the pairs of the best-fitting K% of the *samples*
-  (:func:`sample_trimmed_rms`: samples ranked by their own RMS residual, the rows of
+  (:func:`gromov.gmds.sample_trimmed_rms`: samples ranked by their own RMS residual, the rows of
   :attr:`gromov.MatchResult.sample_distortion`).
 
 A weld changes the heat-kernel diffusion distance of a point near it to *every* other point:
@@ -51,7 +51,7 @@ from gromov.experiments.pairwise import _one_thread_per_worker, prepare
 from gromov.experiments.recognition import equal_error_rate
 from gromov.experiments.reproduce import DIFFUSION_FILL_HOLES, _collection, _Shapes, settings_for
 from gromov.gh import match
-from gromov.gmds import norm_value, trimmed_rms
+from gromov.gmds import norm_value, sample_trimmed_rms, trimmed_rms
 
 HERE = Path(__file__).resolve().parent
 HELDOUT = {"wolf": 2, "horse": 4, "centaur": 5, "michael": 6}
@@ -71,18 +71,6 @@ def statistics(e: np.ndarray) -> dict:
     out.update({f"strim{round(100 * k)}": sample_trimmed_rms(e, k) for k in SAMPLE_KEEPS})
     return out
 
-
-def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
-    """RMS residual over the pairs of the ``ceil(keep n)`` samples whose own RMS residual
-    (row of ``e``, diagonal excluded) is smallest."""
-    e = np.asarray(e, dtype=float)
-    n = len(e)
-    off = ~np.eye(n, dtype=bool)
-    rows = np.sqrt((np.where(off, e, 0.0) ** 2).sum(axis=1) / (n - 1))
-    k = max(2, int(np.ceil(keep * n)))
-    idx = np.sort(np.argsort(rows, kind="stable")[:k])
-    sub = e[np.ix_(idx, idx)][~np.eye(k, dtype=bool)]
-    return float(np.sqrt(np.mean(sub**2)))
 
 
 def margin(D: np.ndarray, labels: np.ndarray) -> float:

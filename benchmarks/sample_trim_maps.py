@@ -28,21 +28,12 @@ import numpy as np
 from gromov.experiments.datasets import TOSCA, experiment1
 from gromov.experiments.reproduce import _pair_quality, _Shapes
 from gromov.gh import ShapeMetric, match
-from gromov.gmds import trimmed_rms
+from gromov.gmds import sample_trimmed_rms, trimmed_rms
 
 HERE = Path(__file__).resolve().parent
 OPTIONS = {"kernel": "heat", "tau": 0.005, "fill_holes": 0.5}
 WRONG = 0.05
 
-
-def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
-    """RMS over the pairs of the ``ceil(keep n)`` samples with the smallest own RMS residual."""
-    n = len(e)
-    off = ~np.eye(n, dtype=bool)
-    rows = np.sqrt((np.where(off, e, 0.0) ** 2).sum(axis=1) / (n - 1))
-    k = max(2, int(np.ceil(keep * n)))
-    idx = np.sort(np.argsort(rows, kind="stable")[:k])
-    return float(np.sqrt(np.mean(e[np.ix_(idx, idx)][~np.eye(k, dtype=bool)] ** 2)))
 
 
 def summaries(e: np.ndarray, diam: float) -> dict:

@@ -37,7 +37,7 @@ import numpy as np
 from gromov import farthest_point_sampling
 from gromov.experiments.datasets import TOSCA, experiment1
 from gromov.experiments.reproduce import _Shapes, _weld
-from gromov.gmds import trimmed_rms
+from gromov.gmds import sample_trimmed_rms, trimmed_rms
 from gromov.metrics import metric_solver
 
 HERE = Path(__file__).resolve().parent
@@ -48,15 +48,6 @@ BANDS = ((0.0, 0.05), (0.05, 0.1), (0.1, 0.2), (0.2, 1.01))
 def _area(solver) -> float:
     return float(getattr(solver, "inner", solver).area)
 
-
-def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
-    """RMS over the pairs of the ``ceil(keep n)`` samples with the smallest own RMS residual."""
-    n = len(e)
-    off = ~np.eye(n, dtype=bool)
-    rows = np.sqrt((np.where(off, e, 0.0) ** 2).sum(axis=1) / (n - 1))
-    k = max(2, int(np.ceil(keep * n)))
-    idx = np.sort(np.argsort(rows, kind="stable")[:k])
-    return float(np.sqrt(np.mean(e[np.ix_(idx, idx)][~np.eye(k, dtype=bool)] ** 2)))
 
 
 def _distortions(a: np.ndarray, b: np.ndarray, diam: float) -> dict:

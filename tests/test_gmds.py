@@ -91,6 +91,32 @@ def test_trimmed_rms_sets_aside_the_worst_fitting_pairs():
             trimmed_rms(r, bad)
 
 
+def test_sample_trimmed_rms_sets_aside_whole_samples():
+    from gromov.gmds import sample_trimmed_rms, trimmed_rms
+
+    e = np.full((21, 21), 0.1)
+    e[0, 1:] = e[1:, 0] = 4.0          # one sample fits badly with every other one
+    np.fill_diagonal(e, 7.0)           # the diagonal is not a pair
+    off = ~np.eye(21, dtype=bool)
+    assert sample_trimmed_rms(e, 1.0) == pytest.approx(np.sqrt(np.mean(e[off] ** 2)))
+    # 95% keeps 20 of 21 samples: the bad row and column go, whatever their 40 pairs weigh
+    assert sample_trimmed_rms(e, 0.95) == pytest.approx(0.1)
+    # a pair-trimmed RMS keeping as many pairs (380 of 420) also drops them; keeping 95% does not
+    assert trimmed_rms(e[off], 380 / 420) == pytest.approx(0.1) and trimmed_rms(e[off], 0.95) > 0.1
+    # by hand on a random matrix: rows ranked by their own RMS, the best h kept
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(30, 30))
+    a = a + a.T
+    rows = np.sqrt(((a * ~np.eye(30, dtype=bool)) ** 2).sum(1) / 29)
+    keep = np.sort(np.argsort(rows)[:21])
+    sub = a[np.ix_(keep, keep)][~np.eye(21, dtype=bool)]
+    assert sample_trimmed_rms(a, 0.7) == pytest.approx(np.sqrt(np.mean(sub**2)))
+    assert sample_trimmed_rms(np.zeros((1, 1)), 0.5) == 0.0
+    with pytest.raises(ValueError, match="keep"):
+        sample_trimmed_rms(a, 0.0)
+    with pytest.raises(ValueError, match="square"):
+        sample_trimmed_rms(a[:3], 0.5)
+
 def test_result_fields_and_gw_solver():
     x, y = grid(21, 11), rolled_grid(21, 11)
     for solver in ("gmds", "gw"):

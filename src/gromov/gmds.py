@@ -37,7 +37,7 @@ from .errors import MetricError
 from .mesh import Mesh
 
 __all__ = ["SurfaceDistance", "SurfacePoints", "parse_norm", "norm_value", "trimmed_rms", "TRIM_KEEP",
-           "SymmetricGMDS"]
+           "sample_trimmed_rms", "SymmetricGMDS"]
 
 logger = logging.getLogger(__name__)
 
@@ -92,11 +92,13 @@ def trimmed_rms(r: np.ndarray, keep: float = TRIM_KEEP) -> float:
 
     the objective of least trimmed squares (Rousseeuw, J. Am. Stat. Assoc. 79, 1984). As a
     distortion of a correspondence it ignores the ``1 - keep`` pairs whose distances fit worst:
-    a local change of topology (a weld, a handle) alters the distances of the pairs whose
-    paths run through it, which the trimmed distortion can leave out, while two different
-    shapes disagree on most pairs -- in the spirit of partial similarity (Bronstein,
-    Bronstein, Bruckstein & Kimmel, IJCV 84, 2009), at a fixed fraction of the pairs.
-    ``keep = 1`` is the RMS (:func:`norm_value` with p = 2).
+    a local change of topology (a weld, a handle) alters the distances of the pairs near it
+    most, which the trimmed distortion can leave out, while two different shapes disagree on
+    most pairs -- in the spirit of partial similarity (Bronstein, Bronstein, Bruckstein &
+    Kimmel, IJCV 84, 2009), at a fixed fraction of the pairs. (With the heat-kernel diffusion
+    distance a weld moves whole rows -- every pair of a sample near it -- and all distances a
+    little: :func:`sample_trimmed_rms` and ``benchmarks/weld_rows.py``.) ``keep = 1`` is the
+    RMS (:func:`norm_value` with p = 2).
     """
     if not 0.0 < keep <= 1.0:
         raise ValueError(f"keep must be in (0, 1], got {keep}")
@@ -108,6 +110,40 @@ def trimmed_rms(r: np.ndarray, keep: float = TRIM_KEEP) -> float:
         r2 = np.partition(r2, h - 1)[:h]
     return float(np.sqrt(np.mean(r2)))
 
+
+
+def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
+    r"""RMS residual over the pairs of the best-fitting fraction ``keep`` of the *samples*.
+
+    With ``e`` the square residual matrix of a correspondence (e.g.
+    :attr:`gromov.MatchResult.pair_distortion`; its diagonal is ignored), each sample's own
+    RMS residual :math:`\rho_a = (\frac{1}{n-1}\sum_{b \ne a} e_{ab}^2)^{1/2}` ranks the
+    samples; with :math:`S` the :math:`h = \lceil keep \cdot n \rceil` samples of smallest
+    :math:`\rho_a` (at least 2; ties by index),
+
+    .. math:: \sigma(e) = \Big(\frac{1}{h(h-1)} \sum_{a \ne b \in S} e_{ab}^2\Big)^{1/2}.
+
+    Least trimmed squares (Rousseeuw 1984) over samples instead of pairs: it sets aside
+    whole rows, which is how a weld moves the heat-kernel diffusion distance (between far
+    points :math:`d_t^2 \approx k_{2t}(x,x) + k_{2t}(y,y)`, and a weld changes the return
+    probability of the points near it). ``keep = 1`` is the RMS of the off-diagonal entries.
+    Not used by :func:`gromov.match` or recognition; measured in ``benchmarks/`` (README,
+    "What a weld does to the diffusion metric").
+    """
+    e = np.asarray(e, dtype=float)
+    if e.ndim != 2 or e.shape[0] != e.shape[1]:
+        raise ValueError(f"e must be a square residual matrix, got shape {e.shape}")
+    if not 0.0 < keep <= 1.0:
+        raise ValueError(f"keep must be in (0, 1], got {keep}")
+    n = len(e)
+    if n < 2:
+        return 0.0
+    off = ~np.eye(n, dtype=bool)
+    rows = np.sqrt((np.where(off, e, 0.0) ** 2).sum(axis=1) / (n - 1))
+    h = min(n, max(2, int(np.ceil(keep * n - 1e-9))))
+    idx = np.sort(np.argsort(rows, kind="stable")[:h])
+    sub = e[np.ix_(idx, idx)][~np.eye(h, dtype=bool)]
+    return float(np.sqrt(np.mean(sub**2)))
 
 @dataclass(frozen=True, eq=False)
 class SurfacePoints:
