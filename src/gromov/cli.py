@@ -286,19 +286,16 @@ def cmd_match(args) -> int:
     return 0
 
 
-_MESH_EXTS = (".gz", ".off", ".obj", ".ply", ".stl", ".vert", ".tri")
+def _stem(path) -> str:
+    """File name without folders, ``.gz`` and a mesh format's extension (``cat0.off.gz`` ->
+    ``cat0``; the formats of :data:`gromov.io.FORMATS`)."""
+    from .io import FORMATS
 
-
-def _stem(path: str) -> str:
-    """File name without folders and mesh extensions (``cat0.off.gz`` -> ``cat0``)."""
     name = Path(path).name
-    changed = True
-    while changed:
-        changed = False
-        for ext in _MESH_EXTS:
-            if name.lower().endswith(ext) and len(name) > len(ext):
-                name, changed = name[: -len(ext)], True
-    return name
+    if name.lower().endswith(".gz") and len(name) > 3:
+        name = name[:-3]
+    base, dot, ext = name.rpartition(".")
+    return base if dot and base and ext.lower() in FORMATS else name
 
 
 def class_from_name(path: str) -> str:
@@ -349,7 +346,7 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
 
 
 def cmd_pairwise(args) -> int:
-    from .experiments.pairwise import gh_matrix
+    from .experiments.pairwise import available_cpus, gh_matrix
     from .experiments.recognition import errors_at, mds_map, roc
 
     n = len(args.files)
@@ -393,7 +390,7 @@ def cmd_pairwise(args) -> int:
     options = _metric_options(args)
     t = time.perf_counter()
     r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
-                  metric_options=options, seed=args.seed, jobs=args.jobs or _cpus(),
+                  metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
                   progress=not (args.quiet or args.json))
     seconds = time.perf_counter() - t
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
@@ -469,15 +466,6 @@ def cmd_pairwise(args) -> int:
     return 0
 
 
-def _cpus() -> int:
-    import os
-
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
-
-
 def _write_csv(path: Path, names: list[str], matrix: np.ndarray, what: str) -> None:
     import csv
 
@@ -532,11 +520,7 @@ def cmd_perturb(args) -> int:
         raise _UserError(f"output folder {out.parent} does not exist")
     save(p.mesh, out)
     # ground truth: output vertex i is input vertex vertex_map[i] (file numbering)
-    name = out.name
-    for ext in (".gz", ".off", ".obj", ".ply", ".stl", ".vert", ".tri"):
-        if name.endswith(ext):
-            name = name[: -len(ext)]
-    sidecar = out.with_name(name + ".map.npz")
+    sidecar = out.with_name(_stem(out) + ".map.npz")
     np.savez_compressed(sidecar, vertex_map=shape.input_ids[p.vertex_map].astype(np.int64),
                         sites=shape.input_ids[p.sites].astype(np.int64), kind=p.kind,
                         euler_before=p.euler_before, euler_after=p.euler_after,

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..gh import DEFAULT_COARSE_STAGES, ShapeMetric, match, search_subsets
 
-__all__ = ["PairwiseGH", "gh_matrix", "match_pairs", "prepare"]
+__all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
 logger = logging.getLogger(__name__)
 
@@ -64,6 +64,15 @@ def _pair(ij):
             full = match(x, y, x.metric, orientation="prefer", **options)
     return r.distance, r.relative_distance, r.relative_trimmed, full
 
+
+def available_cpus() -> int:
+    """CPUs this process may run on (its affinity where the OS says it), at least 1: the
+    default number of worker processes."""
+    import os
+
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)  # pragma: no cover - not on Linux
 
 def _one_thread_per_worker():
     """Worker initializer: ``jobs`` processes already fill the cores.

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import platform
 import sys
 import time
@@ -51,7 +50,7 @@ from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..resolution import WorkingMesh, simplify
 from . import datasets
-from .pairwise import gh_matrix, match_pairs, prepare
+from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
 from .recognition import errors_at, mds_map, plot_mds, plot_roc, roc
 
 __all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS", "RANK_BY"]
@@ -634,7 +633,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     """
     t_start = time.perf_counter()
     if jobs is None:
-        jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        jobs = available_cpus()
     if int(jobs) < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     jobs = int(jobs)
