@@ -86,3 +86,28 @@ def test_matrix_holds_the_orientation_free_estimate_and_keep_the_default_map():
         default = match(shapes[i], shapes[j], "geodesic", n_samples=20, resolution=None)
         np.testing.assert_array_equal(r.results[i, j].x_to_y_vertex, default.x_to_y_vertex)
         assert r.results[i, j].distance == default.distance
+
+
+def test_prepare_warns_when_the_matrices_will_not_fit(monkeypatch):
+    """The dense matrices (8 n^2 bytes per shape) are counted before any metric is computed."""
+    import warnings
+
+    from gromov import GromovWarning
+    from gromov.experiments import pairwise
+
+    shapes = [grid(21, 11), rolled_grid(21, 11)]   # 231 vertices each: 2 x 427 kB
+    need = 2 * 8 * 231**2
+    monkeypatch.setattr(pairwise, "_available_memory", lambda: need)  # 80% of it is too little
+    with pytest.warns(GromovWarning, match=r"need about 0\.9 MB \(up to 231 working vertices.*"
+                                          r"0\.9 MB are available: use a lower resolution"):
+        out = pairwise.prepare(shapes, "geodesic", n_samples=10, resolution=None)
+    assert all(s.solver._pairwise is not None for s in out)
+    monkeypatch.setattr(pairwise, "_available_memory", lambda: 2 * need)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pairwise.prepare(shapes, "geodesic", n_samples=10, resolution=None)
+        pairwise.prepare(out, "geodesic", n_samples=10)   # computed already: nothing to warn
+    monkeypatch.setattr(pairwise, "_available_memory", lambda: None)   # unknown: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pairwise.prepare(shapes, "geodesic", n_samples=10, resolution=None)

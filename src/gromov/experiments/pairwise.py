@@ -100,16 +100,47 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
     from tqdm import tqdm
 
     out = []
-    for s in tqdm(list(shapes), desc=f"{metric} metrics", disable=not progress, leave=False):
+    for s in shapes:   # working meshes first (cheap), so the memory can be told before the metrics
         if not isinstance(s, ShapeMetric):
             s = ShapeMetric(s, metric, resolution=resolution, metric_options=metric_options)
         elif s.metric != metric:
             raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
+        out.append(s)
+    _warn_if_too_big(out)
+    for s in tqdm(out, desc=f"{metric} metrics", disable=not progress, leave=False):
         s.distances, s.diameter, s.descriptors, s.samples(n_samples, seed)  # per shape, once
         for k in subsets:
             s.subset(k)
-        out.append(s)
     return out
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available to new allocations (Linux ``MemAvailable``), or None."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:  # pragma: no cover - not on Linux
+        pass
+    return None
+
+
+def _warn_if_too_big(prepared: list[ShapeMetric]) -> None:
+    """Warn before computing metrics whose dense matrices (8 n^2 bytes per shape, all kept
+    for the pairs) would not fit in the memory available."""
+    need = sum(8 * s.mesh.n_vertices**2 for s in prepared if s.solver._pairwise is None)
+    have = _available_memory()
+    if have is not None and need > 0.8 * have:
+        import warnings
+
+        from ..errors import GromovWarning
+
+        n = max(s.mesh.n_vertices for s in prepared)
+        size = lambda b: f"{b / 1e9:.1f} GB" if b >= 1e9 else f"{b / 1e6:.1f} MB"  # noqa: E731
+        warnings.warn(f"the {len(prepared)} shapes' distance matrices need about {size(need)} "
+                      f"(up to {n} working vertices each) and {size(have)} are available: "
+                      f"use a lower resolution or fewer shapes", GromovWarning, stacklevel=3)
 
 
 def _subsets(match_options: dict) -> list[int]:
