@@ -117,6 +117,19 @@ def test_sample_trimmed_rms_sets_aside_whole_samples():
     with pytest.raises(ValueError, match="square"):
         sample_trimmed_rms(a[:3], 0.5)
 
+def test_trimmed_extension_finds_the_isometry():
+    """``extend_keep < 1`` (sample-level least trimmed squares in the extended starts) still
+    finds the isometry of a sheet and its roll, as the default search does; bad values are
+    refused."""
+    x, y = grid(21, 11), rolled_grid(21, 11)
+    plain = match(x, y, "geodesic", n_samples=20, resolution=None)
+    lts = match(x, y, "geodesic", n_samples=20, resolution=None, extend_keep=0.7)
+    assert lts.relative_distance < 0.01 and plain.relative_distance < 0.01
+    for bad in (0.0, 1.2):
+        with pytest.raises(ValueError, match="extend_keep"):
+            match(x, y, "geodesic", n_samples=20, resolution=None, extend_keep=bad)
+
+
 def test_result_fields_and_gw_solver():
     x, y = grid(21, 11), rolled_grid(21, 11)
     for solver in ("gmds", "gw"):

@@ -98,11 +98,11 @@ def test_prefer_warns_and_ignores_on_a_non_orientable_mesh():
 
 
 def test_prefer_returns_the_direct_map_on_the_tosca_cat(data_dir):
-    """cat0 -> cat1 with the geodesic metric and the search of sessions 6-10 (``extend_keep=1``):
-    the lowest-distortion map found is the mirrored one (README, Matching);
+    """cat0 -> cat1 with the geodesic metric and the default search (``extend_keep=1``): the
+    lowest-distortion map found is the mirrored one (README, Matching);
     ``orientation="prefer"`` (the default) returns the direct one, with about the same
-    distortion, and says so. (Since session 11's trimmed extension the default search finds
-    the direct map first on this pair, which would not exercise the preference.)"""
+    distortion, and says so. (With ``extend_keep=0.7`` the search finds the direct map first
+    on this pair, which would not exercise the preference.)"""
     x = ShapeMetric(gromov.load(data_dir / "tosca" / "cat0.off.gz"), "geodesic")
     y = ShapeMetric(gromov.load(data_dir / "tosca" / "cat1.off.gz"), "geodesic")
     mirror = reflection_map(x.input)
