@@ -394,6 +394,7 @@ def cmd_pairwise(args) -> int:
                   progress=not (args.quiet or args.json))
     seconds = time.perf_counter() - t
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
+    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
     nearest = np.argmin(D + np.diag(np.full(n, np.inf)), axis=1)
     names = list(args.files)
     result = {"files": names, "metric": args.metric, "metric_options": options,
@@ -407,14 +408,12 @@ def cmd_pairwise(args) -> int:
         lab = np.array(labels)
         result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
         same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
-        curves = None   # all one class, or every shape its own: no EER
-        if same.any() and not same.all():
+        result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None)
+        if same.any() and not same.all():   # else all one class, or every shape its own: no EER
             curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
-        result["eer"] = None if curves is None else curves[args.rank_by].eer
-        result["eer_gh"] = None if curves is None else curves["gh"].eer
-        result["eer_trimmed"] = None if curves is None else curves["trimmed"].eer
-        result["errors_at_eer"] = None if curves is None else errors_at(
-            D, lab, curves[args.rank_by].eer_threshold)
+            result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
+                          eer_trimmed=curves["trimmed"].eer,
+                          errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold))
     if args.out:
         out = Path(args.out)
         if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
@@ -432,14 +431,12 @@ def cmd_pairwise(args) -> int:
     if args.mds:
         from .experiments.recognition import plot_mds
 
-        what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
         plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
                  args.mds, names=_short_names(names),
                  title=f"MDS of {n} shapes, {args.metric}, {what}")
     if args.json:
         print(json.dumps(result))
         return 0
-    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
     print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric, {args.samples} samples per "
           f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
     width = max(len(f) for f in names)
