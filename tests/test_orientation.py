@@ -74,7 +74,7 @@ def test_agreement_is_one_for_rigid_maps_and_zero_for_mirrors():
 def test_a_partial_flip_has_an_agreement_near_one_half():
     """A map that is direct on one half of a symmetric shape and mirrored on the other (one leg
     sent to the other side) keeps the orientation of about half the sample triangles, within
-    ``DIRECT_MARGIN`` of 1/2: ``orientation="prefer"`` does not take it for a direct map."""
+    ``DIRECT_MARGIN`` of 1/2: ``orientation="prefer"`` does not take it for a clearly direct map."""
     s = icosphere(3)
     e = Mesh(s.vertices * [1.0, 1.7, 2.6], s.faces)  # symmetric under x -> -x, y -> -y, z -> -z
     idx = gromov.farthest_point_sampling(np.linalg.norm(e.vertices[:, None] - e.vertices[None], axis=-1),
@@ -95,8 +95,9 @@ def test_prefer_does_not_take_a_partial_flip_for_the_direct_map(data_dir):
     """horse0 -> horse6 with three welds (held-out class, built as ``gromov reproduce`` builds
     it), default diffusion metric: the lowest-distortion map found is mirrored, and among the
     orientation-preserving alternatives the lowest is a partial flip (agreement 0.54, d(C, C0)
-    0.097, until session 12 returned as "direct"). Only a clearly direct map (agreement above
-    1/2 + ``DIRECT_MARGIN``) may replace the first one; here one exists and is right."""
+    0.097, until session 12 returned as "direct"). A clearly direct map (agreement above 1/2 +
+    ``DIRECT_MARGIN``) is preferred to it; here the mirrored map composed with a reflection
+    gives one, and it is right."""
     from gromov.experiments.datasets import TOSCA, experiment1
     from gromov.experiments.reproduce import _pair_quality, _Shapes
 
