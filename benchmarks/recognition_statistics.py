@@ -96,6 +96,8 @@ def main(argv=None):
     ap.add_argument("--set", choices=("synthetic", "heldout", "paper"), default="synthetic")
     ap.add_argument("--metrics", default="geodesic,diffusion")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--tau", type=float, default=None,
+                    help="heat-kernel diffusion time relative to the area (default: the library's)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     if args.set == "synthetic":
@@ -105,12 +107,14 @@ def main(argv=None):
         coll = _collection("tosca", Path(args.data))
     _N = st.n_samples
     shapes = _Shapes(coll, st.resolution)
-    res = {"date": time.strftime("%Y-%m-%d"), "set": args.set, "n_samples": _N, "eer": {}}
+    res = {"date": time.strftime("%Y-%m-%d"), "set": args.set, "n_samples": _N, "tau": args.tau, "eer": {}}
     print(f"EER by ranking, {args.set} set ({_N} samples per shape)")
     for metric in args.metrics.split(","):
         opts = dict(st.metric_options[metric])
         if metric == "diffusion":
             opts.setdefault("fill_holes", DIFFUSION_FILL_HOLES)
+            if args.tau is not None:
+                opts["tau"] = args.tau
         for exp, entries in (("weld", datasets.experiment1(coll, st.experiment1)),
                              ("holes", datasets.experiment2(coll, st.experiment2))):
             items = [shapes.entry(e) for e in entries]
