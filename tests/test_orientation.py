@@ -106,7 +106,8 @@ def test_prefer_does_not_take_a_partial_flip_for_the_direct_map(data_dir):
     entries = [shapes.entry(e) for e in experiment1(tosca, {"horse": 2})]
     ref = entries[0]
     welded = next(e for e in entries if e.label == "horse6+weld3")
-    x, y = ShapeMetric(ref.mesh, "diffusion", resolution=None), ShapeMetric(welded.mesh, "diffusion", resolution=None)
+    x = ShapeMetric(ref.mesh, "diffusion", resolution=None)
+    y = ShapeMetric(welded.mesh, "diffusion", resolution=None)
     r = match(x, y, "diffusion")
     assert abs(r.orientation - 0.5) > gromov.gh.DIRECT_MARGIN
     assert _pair_quality(r, shapes, ref, welded)["best"] < 0.05

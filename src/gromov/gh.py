@@ -783,17 +783,18 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         (agreement above 1/2), as before session 12. A map direct on part of the shapes and
         mirrored on the rest (a leg sent to the other side) has an agreement near 1/2, and so
         has a noisy right map (:mod:`gromov.orientation`; ignored with a warning when a
-        working mesh is not orientable). When the first map keeps the orientation, the result is the same as with
-        "ignore". Chosen on the held-out classes (``benchmarks/bench_heldout.py
-        --orientation``, session 8): d(C, C0) with the mirrored map counted as wrong went
+        working mesh is not orientable). When the first map keeps the orientation, the
+        result is the same as with "ignore". Chosen on the held-out classes
+        (``benchmarks/bench_heldout.py --orientation``, session 8): d(C, C0) with the mirrored map counted as wrong went
         from 0.101 / 0.104 / 0.063 / 0.081 (clean / welds / 10 / 20 holes) to 0.022 / 0.066 /
         0.024 / 0.023 with the geodesic metric and from 0.039 / 0.093 / 0.038 / 0.079 to
         0.039 / 0.053 / 0.018 / 0.079 with the heat-kernel diffusion metric; with the mirrored
         map counted as correct, geodesic 0.023 / 0.066 / 0.024 / 0.023 to 0.022 / 0.066 /
         0.024 / 0.023, diffusion 0.025 / 0.039 / 0.018 / 0.028 to 0.025 / 0.044 / 0.018 /
         0.028 (two wrong welded maps replaced by other wrong ones: partial flips, agreement
-        0.54). Session 12, the margin: diffusion 0.025 / **0.034** / 0.018 / 0.027 (direct
-        reading 0.039 / 0.047 / 0.018 / 0.047), geodesic unchanged.
+        0.54). Session 12, the clearly direct map first: diffusion 0.025 / **0.035** / 0.018 /
+        0.027 (direct reading 0.039 / 0.043 / 0.018 / 0.047), geodesic unchanged
+        (``benchmarks/results/heldout-s12.json``).
     extend_keep : float, default 1 (off)
         With ``extend_keep < 1``: after each extended start's discrete descent over all
         samples, ``EXTEND_ROUNDS`` (3) rounds of sample-level least trimmed squares: descend
