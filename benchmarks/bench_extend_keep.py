@@ -17,7 +17,6 @@ them): d(C, C0) (best of direct and mirrored) per pair and per condition.
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
@@ -27,13 +26,12 @@ import gromov.gh as gh
 from gromov.experiments.datasets import TOSCA, experiment1, experiment2
 from gromov.experiments.reproduce import _pair_quality, _Shapes
 
-HERE = Path(__file__).resolve().parent
-OPTIONS = {"kernel": "heat", "tau": 0.005, "fill_holes": 0.5}
+from _common import HEAT as OPTIONS, add_data_argument
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    add_data_argument(ap)
     ap.add_argument("--keep", type=float, default=0.7, help="extend_keep (1: the default search)")
     ap.add_argument("--shapes", default=None, help="only these deformed shapes, e.g. horse6,centaur1+weld3")
     ap.add_argument("--metric", choices=("diffusion", "geodesic"), default="diffusion")

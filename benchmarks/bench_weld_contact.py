@@ -32,8 +32,6 @@ share connectivity).
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -48,6 +46,7 @@ from gromov.gh import ShapeMetric
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))  # the sibling benchmark's helpers
+from _common import add_data_argument, write_results  # noqa: E402
 from bench_heldout import _rows_of  # noqa: E402
 
 METRICS = {
@@ -100,7 +99,7 @@ def _distortion(ref: _Reference, name: str, pose: Mesh) -> float:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    add_data_argument(ap)
     ap.add_argument("--classes", default="horse,centaur,wolf,michael")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
@@ -162,11 +161,8 @@ def main(argv=None):
     clean = [r for r in rows if r["study"] == "resolution" and r["setting"] == 3000]
     print("\nclean distortion at 3,000 vertices, for scale: " + ", ".join(
         f"{name} {np.mean([r['clean'][name] for r in clean]):.4f}" for name in METRICS))
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "classes": args.classes,
-                                               "welds": WELDS, "seed": SEED, "summary": summary, "rows": rows},
-                                              indent=1))
+    write_results(args.json, {"classes": args.classes, "welds": WELDS, "seed": SEED, "summary": summary,
+                              "rows": rows})
 
 
 if __name__ == "__main__":

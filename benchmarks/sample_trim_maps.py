@@ -18,8 +18,6 @@ the summary that matches the mechanism.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import time
 from pathlib import Path
 
@@ -28,23 +26,19 @@ import numpy as np
 from gromov.experiments.datasets import TOSCA, experiment1
 from gromov.experiments.reproduce import _pair_quality, _Shapes
 from gromov.gh import ShapeMetric, match
-from gromov.gmds import sample_trimmed_rms, trimmed_rms
 
-HERE = Path(__file__).resolve().parent
-OPTIONS = {"kernel": "heat", "tau": 0.005, "fill_holes": 0.5}
+from _common import HEAT as OPTIONS, add_data_argument, residual_summaries, write_results
+
 WRONG = 0.05
 
 
-
 def summaries(e: np.ndarray, diam: float) -> dict:
-    r = e[~np.eye(len(e), dtype=bool)]
-    return {"rms": float(np.sqrt(np.mean(r**2))) / diam, "trim80": trimmed_rms(r, 0.8) / diam,
-            "strim70": sample_trimmed_rms(e, 0.7) / diam, "strim50": sample_trimmed_rms(e, 0.5) / diam}
+    return residual_summaries(e, diam, sample_keeps=(0.7, 0.5))
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    add_data_argument(ap)
     ap.add_argument("--classes", default="horse,centaur,wolf,michael")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
@@ -78,9 +72,7 @@ def main(argv=None):
         n = sum(r["found"][k] < r["truth"][k] for r in wrong)
         print(f"{k:>8}: {n} of {len(wrong)} wrong maps have lower distortion than the truth")
     print(f"({time.perf_counter() - t0:.0f} s)")
-    if args.json:
-        Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "options": OPTIONS,
-                                               "rows": rows}, indent=2))
+    write_results(args.json, {"options": OPTIONS, "rows": rows})
     return rows
 
 

@@ -15,8 +15,6 @@ these are properties of the data.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import time
 from pathlib import Path
 
@@ -25,7 +23,7 @@ import numpy as np
 from gromov.experiments.datasets import TOSCA
 from gromov.metrics import GeodesicSolver
 
-HERE = Path(__file__).resolve().parent
+from _common import add_data_argument, write_results
 
 
 def pose_pair(tosca: TOSCA, cls: str, n: int = 100, seed: int = 1) -> dict:
@@ -43,7 +41,7 @@ def pose_pair(tosca: TOSCA, cls: str, n: int = 100, seed: int = 1) -> dict:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    add_data_argument(ap)
     ap.add_argument("--classes", default="cat,dog,david,victoria,horse,centaur,wolf,michael")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
@@ -57,9 +55,7 @@ def main(argv=None):
         print(f"{cls:<10}{'%d,%d' % tuple(r['poses']):>8}{r['n_vertices']:>10}{r['rms_over_diameter']:>10.4f}"
               f"{r['median_relative_change']:>15.3f}{r['median_scale']:>14.3f}", flush=True)
     print(f"({time.perf_counter() - t0:.0f} s)")
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "rows": rows}, indent=1))
+    write_results(args.json, {"rows": rows})
 
 
 if __name__ == "__main__":

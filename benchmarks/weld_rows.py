@@ -27,8 +27,6 @@ run through the weld.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import time
 from pathlib import Path
 
@@ -37,11 +35,10 @@ import numpy as np
 from gromov import farthest_point_sampling
 from gromov.experiments.datasets import TOSCA, experiment1
 from gromov.experiments.reproduce import _Shapes, _weld
-from gromov.gmds import sample_trimmed_rms, trimmed_rms
 from gromov.metrics import metric_solver
 
-HERE = Path(__file__).resolve().parent
-OPTIONS = {"kernel": "heat", "tau": 0.005, "fill_holes": 0.5}
+from _common import HEAT as OPTIONS, add_data_argument, residual_summaries, write_results
+
 BANDS = ((0.0, 0.05), (0.05, 0.1), (0.1, 0.2), (0.2, 1.01))
 
 
@@ -49,17 +46,9 @@ def _area(solver) -> float:
     return float(getattr(solver, "inner", solver).area)
 
 
-
-def _distortions(a: np.ndarray, b: np.ndarray, diam: float) -> dict:
-    e = a - b
-    r = e[~np.eye(len(e), dtype=bool)]
-    return {"rms": float(np.sqrt(np.mean(r**2)) / diam), "trimmed80": trimmed_rms(r, 0.8) / diam,
-            "sample_trimmed70": sample_trimmed_rms(e, 0.7) / diam}
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    add_data_argument(ap)
     ap.add_argument("--classes", default="wolf,horse,centaur,michael")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
@@ -102,8 +91,8 @@ def main(argv=None):
                        "pairs": int(((nearer >= lo) & (nearer < hi)).sum()),
                        "median_abs_rel_change": float(np.median(np.abs(rel[(nearer >= lo) & (nearer < hi)])))
                        if ((nearer >= lo) & (nearer < hi)).any() else None} for lo, hi in BANDS},
-                   "truth_clean": _distortions(A[np.ix_(ok, ok)], C, diam_c),
-                   "truth_weld": _distortions(A[np.ix_(ok, ok)], W, diam_w)}
+                   "truth_clean": residual_summaries(A[np.ix_(ok, ok)] - C, diam_c),
+                   "truth_weld": residual_summaries(A[np.ix_(ok, ok)] - W, diam_w)}
             rows.append(row)
             bands = "  ".join(f"{k} {v['median_abs_rel_change']:.4f} ({v['pairs']})"
                               for k, v in row["by_distance_to_weld"].items() if v["pairs"])
@@ -113,12 +102,10 @@ def main(argv=None):
                   f"of pairs, shorter: {row['fraction_shorter']:.1%}", flush=True)
             print(f"{'':>10}median |rel. change| by the nearer sample's distance to a weld: {bands}")
             print(f"{'':>10}ground truth clean / welded: RMS {tc['rms']:.4f} / {tw['rms']:.4f}, "
-                  f"trimmed 80% {tc['trimmed80']:.4f} / {tw['trimmed80']:.4f}, "
-                  f"best 70% of samples {tc['sample_trimmed70']:.4f} / {tw['sample_trimmed70']:.4f}")
+                  f"trimmed 80% {tc['trim80']:.4f} / {tw['trim80']:.4f}, "
+                  f"best 70% of samples {tc['strim70']:.4f} / {tw['strim70']:.4f}")
     print(f"({time.perf_counter() - t0:.0f} s)")
-    if args.json:
-        Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "options": OPTIONS,
-                                               "rows": rows}, indent=2))
+    write_results(args.json, {"options": OPTIONS, "rows": rows})
     return rows
 
 
