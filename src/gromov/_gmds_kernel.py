@@ -251,6 +251,9 @@ def pair_distances(vt, vu, fixed, D2, F):
     return out
 
 
+_NO_COST = np.zeros((0, 0))  # no per-image costs
+
+
 @njit(cache=True)
 def _argmin(x):
     """``np.argmin`` (first index of the minimum) for finite ``x``, about twice as fast: the
@@ -292,7 +295,7 @@ def _sq_dist_sum(dx, DY, img):
 
 
 @njit(cache=True)
-def _place(dx, DY, img, c, R, C, block):
+def _place(dx, DY, img, c, R, C, block, U):
     """Greedy placement of samples ``c..m-1`` given ``img[:c]``; leaves in ``C[k]`` the cost
     ``sum_{j<k} (dx[k, j] - DY[img_j, :])^2`` that placed sample k (for all k) and in ``R[k]``
     the row ``DY[img_k]``.
@@ -324,6 +327,10 @@ def _place(dx, DY, img, c, R, C, block):
                 for u in range(n):
                     d = t - rj[u]
                     row[u] += d * d
+            if U.shape[0] > k:  # a per-image cost of sample k (its signature's mismatch)
+                uk = U[k]
+                for u in range(n):
+                    row[u] += uk[u]
             if k >= c:
                 img[k] = _argmin(row)
             R[k] = DY[img[k]]
@@ -522,8 +529,15 @@ def descend_blas(dx, DY, img, C, max_sweeps, *, cap=32, ratio=2.0):
     return img
 
 
+def place_and_descend(dx, DY, start, max_sweeps, R, C, U=None, *, block=16, cap=32, ratio=2.0):
+    """:func:`_place_and_descend`; ``U`` (optional, ``(m', n)``): per-image costs of the first
+    ``m'`` samples, added to their placement and descent costs and to the cost returned."""
+    U = _NO_COST if U is None else np.ascontiguousarray(U, dtype=np.float64)
+    return _place_and_descend(dx, DY, np.asarray(start, dtype=np.int64), max_sweeps, R, C, U, block, cap, ratio)
+
+
 @njit(cache=True)
-def place_and_descend(dx, DY, start, max_sweeps, R, C, block=16, cap=32, ratio=2.0):
+def _place_and_descend(dx, DY, start, max_sweeps, R, C, U, block, cap, ratio):
     """Greedy placement of all samples from images ``start`` of the first ones, then discrete
     descent; returns ``(images, sum_ij (dx[i, j] - DY[img_i, img_j])^2)``.
 
@@ -537,14 +551,17 @@ def place_and_descend(dx, DY, start, max_sweeps, R, C, block=16, cap=32, ratio=2
     img = np.empty(m, np.int64)
     c = start.shape[0]
     img[:c] = start
-    _place(dx, DY, img, c, R, C, block)
+    _place(dx, DY, img, c, R, C, block, U)
     if max_sweeps > 0:
         _complete(dx, R, C, block)
         img = _descend(dx, DY, img, C, max_sweeps, cap, ratio)
-    return img, _sq_dist_sum(dx, DY, img)
+    f = _sq_dist_sum(dx, DY, img)
+    for k in range(min(U.shape[0], m)):
+        f += U[k, img[k]]
+    return img, f
 
 
-def coarse_starts(dx, DY, candidates, max_sweeps):
+def coarse_starts(dx, DY, candidates, max_sweeps, U=None):
     """:func:`place_and_descend` from each candidate image of the first sample:
     images ``(s, m)`` and their summed squared distortions ``(s,)``.
 
@@ -558,17 +575,18 @@ def coarse_starts(dx, DY, candidates, max_sweeps):
     s = len(candidates)
     imgs = np.empty((s, dx.shape[0]), np.int64)
     costs = np.empty(s)
+    U = _NO_COST if U is None else np.ascontiguousarray(U, dtype=np.float64)
     threads = get_num_threads()
     if threads > 1 and s > 1:
         with parallel_chunksize(1):  # chunks handed out one by one: their costs differ
-            _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, min(s, 4 * threads))
+            _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, min(s, 4 * threads), U)
     else:
-        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1)
+        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1, U)
     return imgs, costs
 
 
 @njit(cache=True)
-def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step):
+def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step, U):
     """Candidates ``first, first + step, ...`` of :func:`coarse_starts`, into ``imgs, costs``."""
     m = dx.shape[0]
     n = DY.shape[0]
@@ -577,15 +595,15 @@ def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step):
     start = np.empty(1, np.int64)
     for q in range(first, candidates.shape[0], step):
         start[0] = candidates[q]
-        img, f = place_and_descend(dx, DY, start, max_sweeps, R, C, 16, 32, 2.0)
+        img, f = _place_and_descend(dx, DY, start, max_sweeps, R, C, U, 16, 32, 2.0)
         imgs[q] = img
         costs[q] = f
 
 
 @njit(cache=True, parallel=True)
-def _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks):
+def _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks, U):
     for ch in prange(nchunks):
-        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, ch, nchunks)
+        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, ch, nchunks, U)
 
 
 def place_and_descend_blas(dx, DY, start, max_sweeps, R, C, *, block=16, cap=32, ratio=2.0):
@@ -594,7 +612,7 @@ def place_and_descend_blas(dx, DY, start, max_sweeps, R, C, *, block=16, cap=32,
     m = dx.shape[0]
     img = np.empty(m, np.int64)
     img[: len(start)] = start
-    _place(dx, DY, img, len(start), R, C, block)
+    _place(dx, DY, img, len(start), R, C, block, _NO_COST)
     if max_sweeps > 0:
         _complete(dx, R, C, block)
         img = descend_blas(dx, DY, img, C, max_sweeps, cap=cap, ratio=ratio)

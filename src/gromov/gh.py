@@ -66,6 +66,11 @@ SYMMETRY_TOL = 0.05
 #: ``INVOLUTION_TOL`` of the diameter at a sample (a reflection is its own inverse).
 INVOLUTION_REPAIRS = 2
 INVOLUTION_TOL = 0.05
+#: Signature-guided coarse stages (see ``match``'s ``signature_weight``): the weight of the
+#: per-image cost, and how many of the candidates (the best-matching signatures first) they
+#: start from.
+SIGNATURE_WEIGHT = 1.0
+SIGNATURE_STARTS = 32
 
 
 class ShapeMetric:
@@ -386,7 +391,8 @@ class _Search:
     """One direction of :func:`greedy_init`'s search, kept so that more of its coarse starts
     can be extended later (:meth:`extend_preserving`)."""
 
-    def __init__(self, dx_pp, DY, candidates, stages, n_extend, domain, extend_keep=EXTEND_KEEP):
+    def __init__(self, dx_pp, DY, candidates, stages, n_extend, domain, extend_keep=EXTEND_KEEP,
+                 signature_costs=None):
         self.extend_keep = float(extend_keep)
         self.dx_pp = np.ascontiguousarray(dx_pp, dtype=np.float64)
         candidates = np.asarray(candidates, dtype=np.int64)
@@ -399,16 +405,23 @@ class _Search:
             self.dom, work = None, np.ascontiguousarray(DY, dtype=np.float64)
         self.work = work
         self.coarse = []  # per stage: (cost, images as a tuple of ids of ``work``), sorted
-        for c, vertices in stages:
+        runs = [(c, vertices, None) for c, vertices in stages]
+        if signature_costs is not None:  # each stage again, with the signatures' costs
+            runs += [(c, vertices, signature_costs) for c, vertices in stages]
+        for c, vertices, delta2 in runs:
             c = min(int(c), len(self.dx_pp))
             head = np.ascontiguousarray(self.dx_pp[:c, :c])
             sub = _on_subset(work, vertices, candidates)
+            U, k = None, len(candidates)
+            if delta2 is not None:  # as if each of a sample's c - 1 distances were off by its mismatch
+                weight, delta2 = delta2
+                U, k = weight * (c - 1) * delta2[:c], min(k, SIGNATURE_STARTS)
             if sub is not None:
                 dom, part, cand = sub
-                imgs, costs = _kernel.coarse_starts(head, part, cand, 20)
+                imgs, costs = _kernel.coarse_starts(head, part, cand[:k], 20, None if U is None else U[:, dom])
                 imgs = dom[imgs]
             else:
-                imgs, costs = _kernel.coarse_starts(head, work, candidates, 20)
+                imgs, costs = _kernel.coarse_starts(head, work, candidates[:k], 20, U)
             self.coarse.append(sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist())))
         self.per_stage = -(-int(n_extend) // len(self.coarse))  # evenly, rounded up
         self.seen: set = set()
@@ -487,6 +500,19 @@ class _Search:
         return self._extend(todo, polish=True)
 
 
+def signature_mismatch(sx: "ShapeMetric", sy: "ShapeMetric", A: np.ndarray,
+                       vertices: np.ndarray | None = None) -> np.ndarray:
+    """``(len(A), n)``: squared mean absolute difference between the signatures
+    (:attr:`ShapeMetric.descriptors`) of the vertices ``A`` of ``sx`` and of each working vertex
+    of ``sy`` (or of ``vertices``), in squared distance units."""
+    sb = sy.descriptors if vertices is None else sy.descriptors[vertices]
+    sa = sx.descriptors[np.asarray(A, dtype=np.int64)]
+    delta = np.empty((len(sa), len(sb)))
+    for k, row in enumerate(sa):  # one sample at a time: no (len(A), n, 16) temporary
+        delta[k] = np.abs(sb - row).mean(axis=1)
+    return delta * delta
+
+
 def search_subsets(coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = None) -> list[int]:
     """Sizes of the vertex subsets (:meth:`ShapeMetric.subset`) that :func:`match` searches on
     with these options, so that they can be computed once per shape."""
@@ -551,7 +577,8 @@ def gw_coupling(dx: np.ndarray, dy: np.ndarray, *, max_iter: int = 1000) -> np.n
 def initial_pairs(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray, *,
                   n_starts: int = DEFAULT_N_STARTS, n_extend: int = DEFAULT_N_EXTEND,
                   coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = DEFAULT_SEARCH_VERTICES,
-                  all_starts: bool = False, extend_keep: float = EXTEND_KEEP) -> list[tuple[np.ndarray, np.ndarray]]:
+                  all_starts: bool = False, extend_keep: float = EXTEND_KEEP,
+                  signature_weight: float = SIGNATURE_WEIGHT) -> list[tuple[np.ndarray, np.ndarray]]:
     """The two-sided starts of :func:`match`'s GMDS: pairs ``(images of P on Y, images of Q on X)``
     (working vertex ids).
 
@@ -561,7 +588,7 @@ def initial_pairs(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.nda
     :func:`match`'s.
     """
     st = _Starts(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend, coarse_stages=coarse_stages,
-                 search_vertices=search_vertices, extend_keep=extend_keep)
+                 search_vertices=search_vertices, extend_keep=extend_keep, signature_weight=signature_weight)
     return st.plain(all_starts)
 
 
@@ -569,7 +596,7 @@ class _Starts:
     """Both directions of :func:`initial_pairs`' search, kept for more starts later."""
 
     def __init__(self, sx, sy, P, Q, *, n_starts, n_extend, coarse_stages, search_vertices,
-                 extend_keep=EXTEND_KEEP):
+                 extend_keep=EXTEND_KEEP, signature_weight=SIGNATURE_WEIGHT):
         self.sx, self.sy, self.P, self.Q = sx, sy, P, Q
         DX, DY = sx.distances, sy.distances
         self.dx_pp, self.dy_qq = DX[np.ix_(P, P)], DY[np.ix_(Q, Q)]
@@ -582,8 +609,14 @@ class _Starts:
             return [(c, None if k is None else s.subset(k)) for c, k in coarse_stages], None
 
         (st_y, dom_y), (st_x, dom_x) = search(sy), search(sx)
-        self.fwd = _Search(self.dx_pp, DY, cand_y, st_y, n_extend, dom_y, extend_keep)
-        self.bwd = _Search(self.dy_qq, DX, cand_x, st_x, n_extend, dom_x, extend_keep)
+        sig_y = sig_x = None
+        if signature_weight > 0:  # on the vertices each direction searches (its ``work``)
+            c = max(c for c, _ in coarse_stages)
+            on = (lambda dom, cand: None if dom is None else np.union1d(dom, cand))
+            sig_y = (signature_weight, signature_mismatch(sx, sy, P[:c], on(dom_y, cand_y)))
+            sig_x = (signature_weight, signature_mismatch(sy, sx, Q[:c], on(dom_x, cand_x)))
+        self.fwd = _Search(self.dx_pp, DY, cand_y, st_y, n_extend, dom_y, extend_keep, sig_y)
+        self.bwd = _Search(self.dy_qq, DX, cand_x, st_x, n_extend, dom_x, extend_keep, sig_x)
 
     def _pairs(self, fwd, bwd):
         DX, DY, P, Q = self.sx.distances, self.sy.distances, self.P, self.Q
@@ -612,10 +645,12 @@ def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray 
         return None
     P = s.samples(n_samples, seed)
     # a shape against itself has no change of topology to set aside: the plain extension (with
-    # the trimmed one the wolf's reflection sent 31% of its vertices astray, not 1.3%)
+    # the trimmed one the wolf's reflection sent 31% of its vertices astray, not 1.3%), and no
+    # signature-guided stages (with them the wolf's reflection again sent 31% of its vertices
+    # astray; session 13, not investigated further)
     search = _Starts(s, s, P, P, n_starts=DEFAULT_N_STARTS, n_extend=DEFAULT_N_EXTEND,
                      coarse_stages=DEFAULT_COARSE_STAGES, search_vertices=DEFAULT_SEARCH_VERTICES,
-                     extend_keep=1.0)
+                     extend_keep=1.0, signature_weight=0.0)
     pairs = search.plain(all_starts=True) + search.preserving(-(-search.fwd.per_stage // 2) * 2,
                                                                  reversing=True)
     at = [_at_vertices(s, s, a, b) for a, b in pairs]
@@ -706,7 +741,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
           resolution: int | None = DEFAULT_RESOLUTION,
           metric_options: dict | None = None, max_iter: int = 100, tol: float = 1e-6,
           radius: float | None = None, orientation: str = "prefer",
-          extend_keep: float = EXTEND_KEEP) -> MatchResult:
+          extend_keep: float = EXTEND_KEEP, signature_weight: float = SIGNATURE_WEIGHT) -> MatchResult:
     r"""Gromov-Hausdorff distance and correspondence between two shapes.
 
     Parameters
@@ -808,6 +843,21 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         d(C, C0) 0.044 -> 0.050, and ``gromov reproduce`` 718 s -> 1,007 s (the pairs in
         one-thread workers take 1.75 times as long), over its 15-minute target -- so it is
         not the default (README, "Choices worth knowing").
+    signature_weight : float, default 1
+        Each coarse stage is run a second time from the ``SIGNATURE_STARTS`` (32) candidates
+        with the best-matching signatures, with a per-image cost added to the distortion:
+        sample k placed at vertex v costs ``signature_weight * (c - 1) * delta(k, v)^2``
+        more, ``delta`` the mean absolute difference of the two vertices' signatures
+        (:attr:`ShapeMetric.descriptors`: quantiles of their distances) -- as if each of its
+        ``c - 1`` distances were off by that much; ``n_extend`` is then shared among twice as
+        many stages. Why: the first samples are the farthest apart (the extremities), and
+        diffusion distances saturate at that range (centaur, heat kernel: all pairs of the
+        first 12 samples 0.80-1.00 of the diameter), so distances alone hardly tell a hand
+        from a hoof and the greedy placement went astray from the right first image. 0
+        turns it off (as before session 13). Chosen on the held-out classes (session 13,
+        ``benchmarks/results/heldout-s13.json``): diffusion d(C, C0) clean / welds / 10 / 20
+        holes 0.025 / 0.035 / 0.018 / 0.027 -> 0.021 / 0.023 / 0.011 / 0.020, geodesic welds
+        0.066 -> 0.059 (rest unchanged); weights 0.25 / 0.5 / 2 were mixed (README).
 
     Returns
     -------
@@ -824,6 +874,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"orientation must be 'ignore' or 'prefer', got {orientation!r}")
     if not 0.0 < extend_keep <= 1.0:
         raise ValueError(f"extend_keep must be in (0, 1], got {extend_keep!r}")
+    if not (np.isfinite(signature_weight) and signature_weight >= 0):
+        raise ValueError(f"signature_weight must be a finite number >= 0, got {signature_weight!r}")
     checked = [("n_starts", n_starts), ("n_extend", n_extend)]
     if search_vertices is not None:
         checked.append(("search_vertices", search_vertices))
@@ -862,7 +914,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         # each direction on its own, then the other direction anchored on it; keep the
         # consistent pair with the lower two-sided distortion
         search = _Starts(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend, coarse_stages=coarse_stages,
-                         search_vertices=search_vertices, extend_keep=extend_keep)
+                         search_vertices=search_vertices, extend_keep=extend_keep,
+                         signature_weight=signature_weight)
         pairs = search.plain(all_starts=False)
         scores = [gm.distortion(*_at_vertices(sx, sy, a, b), 2.0) for a, b in pairs]
         img_p0, img_q0 = pairs[int(np.argmin(scores))]
