@@ -179,6 +179,13 @@ def test_match_json_and_out(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
     with pytest.raises(SystemExit):
         main(["match", str(x), str(y), "--search-vertices", "0"])
+    # and the search on distances only
+    rc = main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "--json",
+               "--signature-weight", "0"])
+    assert rc == 0
+    assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
+    with pytest.raises(SystemExit):
+        main(["match", str(x), str(y), "--signature-weight", "-1"])
 
 
 def test_match_summary_for_people(tmp_path, capsys):

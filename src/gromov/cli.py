@@ -39,6 +39,16 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _nonnegative_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
+    if not (np.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {v}")
+    return v
+
+
 def _classes(text: str) -> dict:
     out = {}
     for item in text.split(","):
@@ -258,7 +268,8 @@ def cmd_match(args) -> int:
             bar.update(1)
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
               solver=args.solver, seed=args.seed, search_vertices=args.search_vertices,
-              orientation=args.orientation)
+              orientation=args.orientation,
+              **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
     if args.out:
         out = Path(args.out)
         if out.parent and not out.parent.exists():
@@ -659,6 +670,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--orientation", choices=("prefer", "ignore"), default="prefer",
                    help="prefer (default): among near-optimal maps, one that keeps the surfaces' "
                         "orientation rather than a mirror image; ignore: the lowest distortion found")
+    q.add_argument("--signature-weight", type=_nonnegative_float, default=None, metavar="W",
+                   help="weight of the distance signatures in the extra coarse stages of GMDS's "
+                        "initial search (default: gromov.match's; 0: distances only)")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
