@@ -49,3 +49,25 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def held_out_pair(data_dir):
+    """``make(cls, label, metric="diffusion")`` -> ``(shapes, ref, y, sx, sy)``: the reference pose
+    of a TOSCA class and one of its shapes (e.g. "horse6+weld3", "centaur1+holes10"), built as
+    ``gromov reproduce`` builds them (3,000 vertices, pinch welds), with their metrics."""
+    from gromov.experiments.datasets import TOSCA, experiment1, experiment2
+    from gromov.experiments.reproduce import _Shapes
+    from gromov.gh import ShapeMetric
+
+    tosca = TOSCA(data_dir / "tosca")
+    shapes = _Shapes(tosca, 3000, "pinch")
+
+    def make(cls: str, label: str, metric: str = "diffusion"):
+        listed = experiment2 if "holes" in label else experiment1
+        entries = [shapes.entry(e) for e in listed(tosca, {cls: 2})]
+        y = next(e for e in entries if e.label == label)
+        return (shapes, entries[0], y, ShapeMetric(entries[0].mesh, metric, resolution=None),
+                ShapeMetric(y.mesh, metric, resolution=None))
+
+    return make

@@ -172,20 +172,15 @@ def test_match_json_and_out(tmp_path, capsys):
     img = z["x_to_y_vertex"]
     candidates = [u * 11 + w, (20 - u) * 11 + w, u * 11 + (10 - w), (20 - u) * 11 + (10 - w)]
     assert max(np.mean(img == c) for c in candidates) >= 0.9
-    # the search on a subset of vertices finds the isometry too
-    rc = main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "--json",
-               "--search-vertices", "60"])
-    assert rc == 0
-    assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
-    with pytest.raises(SystemExit):
-        main(["match", str(x), str(y), "--search-vertices", "0"])
-    # and the search on distances only
-    rc = main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "--json",
-               "--signature-weight", "0"])
-    assert rc == 0
-    assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
-    with pytest.raises(SystemExit):
-        main(["match", str(x), str(y), "--signature-weight", "-1"])
+    # the search on a subset of vertices, and the search on distances only, find the isometry
+    # too; a value out of range is a usage error
+    for option, good, bad in (("--search-vertices", "60", "0"), ("--signature-weight", "0", "-1")):
+        rc = main(["match", str(x), str(y), "--metric", "geodesic", "--samples", "20", "--json",
+                   option, good])
+        assert rc == 0
+        assert json.loads(capsys.readouterr().out)["relative_distance"] < 0.01
+        with pytest.raises(SystemExit):
+            main(["match", str(x), str(y), option, bad])
 
 
 def test_match_summary_for_people(tmp_path, capsys):

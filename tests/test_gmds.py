@@ -490,24 +490,17 @@ def test_trimmed_distortion_sets_a_weld_aside_on_tosca(data_dir):
     assert share["welded"] < share["horse"] - 0.1, share
 
 
-def test_signature_stages_find_the_centaur_map_that_distances_alone_miss(data_dir):
+def test_signature_stages_find_the_centaur_map_that_distances_alone_miss(held_out_pair):
     """centaur0 -> centaur1 with 10 holes (held-out class, built as ``gromov reproduce`` builds
     it), default diffusion metric. The first 12 samples are the extremities, all 0.80-1.00 of
     the diameter apart (clean centaur1): from the right first image the greedy placement
     sends the second sample half the diameter astray, and without signatures every coarse
     start is wrong (d(C, C0) 0.079, a map of higher distortion than the ground truth's). The
     signature-guided stages find a right one (0.027)."""
-    from gromov.experiments.datasets import TOSCA, experiment2
-    from gromov.experiments.reproduce import _pair_quality, _Shapes
-    from gromov.gh import ShapeMetric, match
+    from gromov.experiments.reproduce import _pair_quality
+    from gromov.gh import match
 
-    tosca = TOSCA(data_dir / "tosca")
-    shapes = _Shapes(tosca, 3000, "pinch")
-    entries = [shapes.entry(e) for e in experiment2(tosca, {"centaur": 2})]
-    ref = entries[0]
-    y = next(e for e in entries if e.label == "centaur1+holes10")
-    sx = ShapeMetric(ref.mesh, "diffusion", resolution=None)
-    sy = ShapeMetric(y.mesh, "diffusion", resolution=None)
+    shapes, ref, y, sx, sy = held_out_pair("centaur", "centaur1+holes10")
     without = _pair_quality(match(sx, sy, "diffusion", signature_weight=0.0), shapes, ref, y)
     with_ = _pair_quality(match(sx, sy, "diffusion"), shapes, ref, y)
     assert without["best"] > 0.05

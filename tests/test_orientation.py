@@ -91,23 +91,16 @@ def test_a_partial_flip_has_an_agreement_near_one_half():
     assert orientation_agreement(x, n[idx], dx, e.vertices[mirror[idx]], n[mirror[idx]]) == 0.0
 
 
-def test_prefer_does_not_take_a_partial_flip_for_the_direct_map(data_dir):
+def test_prefer_does_not_take_a_partial_flip_for_the_direct_map(held_out_pair):
     """horse0 -> horse6 with three welds (held-out class, built as ``gromov reproduce`` builds
     it), default diffusion metric: the lowest-distortion map found is mirrored, and among the
     orientation-preserving alternatives the lowest is a partial flip (agreement 0.54, d(C, C0)
     0.097, until session 12 returned as "direct"). A clearly direct map (agreement above 1/2 +
     ``DIRECT_MARGIN``) is preferred to it; here the mirrored map composed with a reflection
     gives one, and it is right."""
-    from gromov.experiments.datasets import TOSCA, experiment1
-    from gromov.experiments.reproduce import _pair_quality, _Shapes
+    from gromov.experiments.reproduce import _pair_quality
 
-    tosca = TOSCA(data_dir / "tosca")
-    shapes = _Shapes(tosca, 3000, "pinch")
-    entries = [shapes.entry(e) for e in experiment1(tosca, {"horse": 2})]
-    ref = entries[0]
-    welded = next(e for e in entries if e.label == "horse6+weld3")
-    x = ShapeMetric(ref.mesh, "diffusion", resolution=None)
-    y = ShapeMetric(welded.mesh, "diffusion", resolution=None)
+    shapes, ref, welded, x, y = held_out_pair("horse", "horse6+weld3")
     r = match(x, y, "diffusion")
     assert abs(r.orientation - 0.5) > gromov.gh.DIRECT_MARGIN
     assert _pair_quality(r, shapes, ref, welded)["best"] < 0.05
