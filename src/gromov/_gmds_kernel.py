@@ -302,6 +302,8 @@ def _place(dx, DY, img, c, R, C, block, U):
 
     Blocked: for the rows of a block the part over samples placed before the block is one
     matrix product ``dx[block, :b] @ R[:b]`` (expanded square), the rest is summed directly.
+    ``U`` ``(m', n)``: per-image costs of the first ``m'`` samples, added to their rows
+    (``(0, 0)``: none); they stay in ``C`` through the descent, which updates rows by differences.
     """
     m = dx.shape[0]
     n = DY.shape[0]
@@ -563,7 +565,8 @@ def _place_and_descend(dx, DY, start, max_sweeps, R, C, U, block, cap, ratio):
 
 def coarse_starts(dx, DY, candidates, max_sweeps, U=None):
     """:func:`place_and_descend` from each candidate image of the first sample:
-    images ``(s, m)`` and their summed squared distortions ``(s,)``.
+    images ``(s, m)`` and their summed squared distortions ``(s,)`` (plus their per-image costs
+    ``U``, if given).
 
     The candidates are independent: with more than one numba thread they run in parallel
     (each chunk with its own work arrays), with the same results as one after the other.

@@ -405,17 +405,18 @@ class _Search:
             self.dom, work = None, np.ascontiguousarray(DY, dtype=np.float64)
         self.work = work
         self.coarse = []  # per stage: (cost, images as a tuple of ids of ``work``), sorted
-        runs = [(c, vertices, None) for c, vertices in stages]
+        runs = [(c, vertices, False) for c, vertices in stages]
         if signature_costs is not None:  # each stage again, with the signatures' costs
-            runs += [(c, vertices, signature_costs) for c, vertices in stages]
-        for c, vertices, delta2 in runs:
+            if self.dom is not None:
+                signature_costs = signature_costs[:, self.dom]
+            runs += [(c, vertices, True) for c, vertices in stages]
+        for c, vertices, signed in runs:
             c = min(int(c), len(self.dx_pp))
             head = np.ascontiguousarray(self.dx_pp[:c, :c])
             sub = _on_subset(work, vertices, candidates)
             U, k = None, len(candidates)
-            if delta2 is not None:  # as if each of a sample's c - 1 distances were off by its mismatch
-                weight, delta2 = delta2
-                U, k = weight * (c - 1) * delta2[:c], min(k, SIGNATURE_STARTS)
+            if signed:  # as if each of a sample's c - 1 distances were off by its mismatch
+                U, k = (c - 1) * signature_costs[:c], min(k, SIGNATURE_STARTS)
             if sub is not None:
                 dom, part, cand = sub
                 imgs, costs = _kernel.coarse_starts(head, part, cand[:k], 20, None if U is None else U[:, dom])
@@ -500,12 +501,11 @@ class _Search:
         return self._extend(todo, polish=True)
 
 
-def signature_mismatch(sx: "ShapeMetric", sy: "ShapeMetric", A: np.ndarray,
-                       vertices: np.ndarray | None = None) -> np.ndarray:
+def signature_mismatch(sx: "ShapeMetric", sy: "ShapeMetric", A: np.ndarray) -> np.ndarray:
     """``(len(A), n)``: squared mean absolute difference between the signatures
     (:attr:`ShapeMetric.descriptors`) of the vertices ``A`` of ``sx`` and of each working vertex
-    of ``sy`` (or of ``vertices``), in squared distance units."""
-    sb = sy.descriptors if vertices is None else sy.descriptors[vertices]
+    of ``sy``, in squared distance units."""
+    sb = sy.descriptors
     sa = sx.descriptors[np.asarray(A, dtype=np.int64)]
     delta = np.empty((len(sa), len(sb)))
     for k, row in enumerate(sa):  # one sample at a time: no (len(A), n, 16) temporary
@@ -610,11 +610,10 @@ class _Starts:
 
         (st_y, dom_y), (st_x, dom_x) = search(sy), search(sx)
         sig_y = sig_x = None
-        if signature_weight > 0:  # on the vertices each direction searches (its ``work``)
+        if signature_weight > 0:  # per image of the first samples, on all vertices of the target
             c = max(c for c, _ in coarse_stages)
-            on = (lambda dom, cand: None if dom is None else np.union1d(dom, cand))
-            sig_y = (signature_weight, signature_mismatch(sx, sy, P[:c], on(dom_y, cand_y)))
-            sig_x = (signature_weight, signature_mismatch(sy, sx, Q[:c], on(dom_x, cand_x)))
+            sig_y = signature_weight * signature_mismatch(sx, sy, P[:c])
+            sig_x = signature_weight * signature_mismatch(sy, sx, Q[:c])
         self.fwd = _Search(self.dx_pp, DY, cand_y, st_y, n_extend, dom_y, extend_keep, sig_y)
         self.bwd = _Search(self.dy_qq, DX, cand_x, st_x, n_extend, dom_x, extend_keep, sig_x)
 
