@@ -51,6 +51,7 @@ METRICS = {
     "heat 0.005": ("diffusion", {"kernel": "heat", "tau": 0.005}),
     "heat 0.005 length": ("diffusion", {"kernel": "heat", "tau": 0.005, "units": "length"}),
     "heat 0.02": ("diffusion", {"kernel": "heat", "tau": 0.02}),
+    "heat normalized": ("diffusion", {"kernel": "heat", "units": "normalized"}),  # tau 0.01
     "biharmonic": ("diffusion", {"kernel": "biharmonic"}),
     "connectivity m=50": ("diffusion", {"kernel": "connectivity"}),
 }

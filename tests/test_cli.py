@@ -276,7 +276,7 @@ def test_units_option(tmp_path, capsys):
     assert main(["distances", str(src), "--kernel", "biharmonic", "--units", "length", "--out", str(out)]) == 2
     assert "--units applies to the heat kernel" in capsys.readouterr().err
     runs = {}
-    for units in ("raw", "length"):
+    for units in ("raw", "length", "normalized"):
         assert main(["distances", str(src), "--samples", "6", "--units", units, "--out", str(out), "-q"]) == 0
         z = np.load(out)
         runs[units] = z["distances"]
@@ -287,6 +287,8 @@ def test_units_option(tmp_path, capsys):
     # a constant factor, sqrt(32 pi) tau area (HeatDiffusionSolver)
     area = icosphere(2).area
     np.testing.assert_allclose(runs["length"], runs["raw"] * np.sqrt(32 * np.pi) * 0.005 * area, rtol=1e-9)
+    # normalised heat distributions: dimensionless, at most 2 (HeatDiffusionSolver)
+    assert 0 < runs["normalized"].max() <= 2
 
 
 def test_class_from_name():

@@ -238,3 +238,31 @@ def test_distances_from_gram_is_the_plain_formula(n):
     expect = 0.5 * (expect + expect.T)
     np.fill_diagonal(expect, 0.0)
     np.testing.assert_array_equal(_distances_from_gram(sq, gi), expect)
+
+
+def test_normalized_heat_distance_is_the_chordal_distance_of_normalised_heat_distributions():
+    # d^2 = 2 - 2 k_2t(x, y) / sqrt(k_2t(x, x) k_2t(y, y)) (module notes): from the raw
+    # embedding's Gram matrix; at most 2 (sqrt 2 between far points), zero only on the
+    # diagonal, and unchanged by scaling the shape (t = tau * area).
+    m = icosphere(3)
+    s = HeatDiffusionSolver(m, units="normalized")
+    assert s.tau == 0.01
+    d = s.pairwise()
+    raw = HeatDiffusionSolver(m, units="raw", tau=0.01).embedding
+    k = raw @ raw.T
+    ref = np.sqrt(np.maximum(2 - 2 * k / np.sqrt(np.outer(np.diag(k), np.diag(k))), 0))
+    np.testing.assert_allclose(d, ref, atol=1e-6)
+    assert d.max() <= 2 and np.all(d[~np.eye(len(d), dtype=bool)] > 0)
+    big = HeatDiffusionSolver(Mesh(3.0 * m.vertices, m.faces), units="normalized").pairwise()
+    np.testing.assert_allclose(big, d, atol=1e-6)
+
+
+def test_normalized_heat_distance_truncation_bound_holds_on_the_tosca_cat(cat_working):
+    w = cat_working.mesh
+    fast = HeatDiffusionSolver(w, units="normalized")
+    idx = np.arange(0, w.n_vertices, 7)
+    d = fast.from_sources(idx)
+    assert 0 < fast.truncation_bound and len(fast.eigenvalues) < w.n_vertices // 3
+    exact = HeatDiffusionSolver(w, units="normalized", rtol=1e-14)
+    ref = exact.from_sources(idx)
+    assert np.abs(d**2 - ref**2).max() <= fast.truncation_bound + 1e-12

@@ -108,13 +108,15 @@ def _diffusion_options(args) -> dict:
 def _add_heat_args(p: argparse.ArgumentParser) -> None:
     """``--tau``, ``--units`` and ``--fill-holes`` (the diffusion metric's), for ``match``,
     ``distances`` and ``reproduce``."""
-    from .metrics.diffusion import HEAT_UNITS
+    from .metrics.diffusion import DEFAULT_UNITS, HEAT_UNITS
 
     p.add_argument("--tau", type=float, default=None,
-                   help="heat-kernel diffusion time relative to the area (default 0.005)")
+                   help="heat-kernel diffusion time relative to the area (default 0.01 with "
+                        "--units normalized, 0.005 with raw or length)")
     p.add_argument("--units", choices=HEAT_UNITS, default=None,
-                   help="heat-kernel diffusion distance in units of 1/length (raw) or scaled to "
-                        "the geodesic distance below the diffusion radius (length)")
+                   help="heat-kernel diffusion distance between normalised heat distributions "
+                        "(normalized), in units of 1/length (raw) or scaled to the geodesic "
+                        "distance below the diffusion radius (length); default " + DEFAULT_UNITS)
     p.add_argument("--fill-holes", type=float, default=None, metavar="F",
                    help="diffusion: close boundary loops shorter than F * sqrt(area of their "
                         "component) before computing the metric (default 0.5; 0 leaves holes open)")

@@ -32,6 +32,25 @@ Laplace-Beltrami heat kernel does not: with the generalised eigenproblem
 (Coifman & Lafon, ACHA 21, 2006; Bronstein et al. 2010, eq. 8), which converges as the
 same surface is meshed more finely. Its unit is 1/length.
 
+**Normalised heat-kernel diffusion** (``units="normalized"``). Since
+:math:`\sum_k e^{-2\lambda_k t}\phi_k(x)\phi_k(y) = k_{2t}(x, y)`,
+:math:`d_t^2(x, y) = k_{2t}(x,x) + k_{2t}(y,y) - 2k_{2t}(x,y)`: the squared :math:`L^2` distance
+between the heat distributions :math:`k_t(x,\cdot)` and :math:`k_t(y,\cdot)` released at the
+two points. Between points farther apart than the diffusion radius it is
+:math:`k_{2t}(x,x) + k_{2t}(y,y)`, the two points' *return probabilities*, which depend on
+the surface within about :math:`\sqrt{8t}` of each point -- so a topology change (a weld)
+moves every distance from the points near it. Scaling each heat distribution to unit
+:math:`L^2` norm first,
+
+.. math:: \bar d_t^2(x, y) = \Big\| \frac{k_t(x,\cdot)}{\|k_t(x,\cdot)\|}
+          - \frac{k_t(y,\cdot)}{\|k_t(y,\cdot)\|} \Big\|^2
+          = 2 - \frac{2\,k_{2t}(x,y)}{\sqrt{k_{2t}(x,x)\,k_{2t}(y,y)}}
+
+(the chordal distance between the normalised rows of the diffusion map), removes the
+return probabilities: far pairs all sit at :math:`\sqrt2`, near pairs are measured by how much
+their heat distributions overlap. It is dimensionless, bending-invariant like
+:math:`d_t`, and unchanged by scaling the shape (t scales with the area).
+
 **Truncation bound.** Both sums are truncated to the leading eigenpairs. For the graph
 operator the eigenvectors are orthonormal, so :math:`\sum_k (\phi_k(x)-\phi_k(y))^2 = 2`
 (x != y) and the dropped terms add up to at most :math:`2\,|\lambda_{K+1}|^{2m}`. For the
@@ -58,12 +77,18 @@ from ._base import MetricSolver, check_shape
 __all__ = [
     "affinity", "diffusion_operator", "cotan_laplacian", "brute_force_diffusion_distance",
     "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "DIFFUSION_KERNELS", "HEAT_UNITS",
+    "DEFAULT_TAU",
 ]
 
 logger = logging.getLogger(__name__)
 
 DIFFUSION_KERNELS = ("connectivity", "gaussian", "heat", "biharmonic")
-HEAT_UNITS = ("raw", "length")
+HEAT_UNITS = ("normalized", "raw", "length")
+#: Default heat-kernel diffusion time relative to the area, per ``units`` (see
+#: :class:`HeatDiffusionSolver`).
+DEFAULT_TAU = {"normalized": 0.01, "raw": 0.005, "length": 0.005}
+#: Default ``units`` of :class:`HeatDiffusionSolver`.
+DEFAULT_UNITS = "raw"
 
 
 # ----------------------------------------------------------------------------- operators
@@ -366,19 +391,24 @@ class HeatDiffusionSolver(_SpectralDiffusion):
     Parameters
     ----------
     shape : Mesh or PointCloud
-    tau : float, default 0.005
-        Diffusion time relative to the area: ``t = tau * area``. The default makes the
+    tau : float, optional
+        Diffusion time relative to the area: ``t = tau * area``. Default
+        :data:`DEFAULT_TAU` of ``units``: 0.005 for "raw" and "length", which makes the
         diffusion radius (sqrt(4t)) about that of the paper's m = 50 graph steps on a
         3,000-vertex mesh (a random walk's mean squared displacement is ``m h^2`` for edge
-        length ``h``), so the two constructions are comparable at that resolution.
+        length ``h``), so the two constructions are comparable at that resolution; 0.01 for
+        "normalized" (chosen on held-out TOSCA classes, see ``units``).
     laplacian : {"cotan", "robust"}, default "cotan"
         Cotangent Laplacian, or the robust Laplacian of Sharp & Crane (SGP 2020) through
         ``robust-laplacian`` (works on non-manifold meshes and point clouds; point clouds
         always use it).
     rtol : float, default 1e-6
         See :class:`GraphDiffusionSolver`.
-    units : {"raw", "length"}, default "raw"
-        ``"raw"``: :math:`d_t` as defined above (unit 1/length; scaling a shape by ``s``
+    units : {"normalized", "raw", "length"}, default DEFAULT_UNITS
+        ``"normalized"``: :math:`\bar d_t`, the distance between the *normalised* heat
+        distributions of the two points (module notes): dimensionless, at most 2, unchanged by
+        scaling the shape, and blind to the return probabilities that a topology change
+        moves. ``"raw"``: :math:`d_t` as defined above (unit 1/length; scaling a shape by ``s``
         scales it by ``1/s``). ``"length"``: :math:`\sqrt{32\pi}\, t\, d_t`, in the shape's
         units of length. On a plane :math:`d_t^2 = 2 (k_{2t}(x,x) - k_{2t}(x,y))` with
         :math:`k_t = e^{-r^2/4t}/(4\pi t)`, so
@@ -394,14 +424,16 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         each other.)
     """
 
-    def __init__(self, shape, *, tau: float = 0.005, laplacian: str = "cotan", rtol: float = 1e-6,
-                 units: str = "raw"):
+    def __init__(self, shape, *, tau: float | None = None, laplacian: str = "cotan", rtol: float = 1e-6,
+                 units: str = DEFAULT_UNITS):
         shape = check_shape(shape, metric="diffusion")
         super().__init__(shape, rtol)
-        if not tau > 0:
-            raise ValueError(f"tau must be positive, got {tau}")
         if units not in HEAT_UNITS:
             raise ValueError(f"units must be one of {HEAT_UNITS}, got {units!r}")
+        if tau is None:
+            tau = DEFAULT_TAU[units]
+        if not tau > 0:
+            raise ValueError(f"tau must be positive, got {tau}")
         self.tau = float(tau)
         self.units = units
         self.laplacian, self.stiffness, self.mass, self.area = _laplacian(shape, laplacian, "heat diffusion")
@@ -423,7 +455,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
             if k > n // 3:
                 lam, phi = _dense_generalized(self.stiffness, self.mass)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
-                return phi * (self.unit_scale * np.exp(-np.maximum(lam, 0.0) * t))
+                return self._normalized(phi * (self.unit_scale * np.exp(-np.maximum(lam, 0.0) * t)))
             lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
             order = np.argsort(lam)
             lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
@@ -436,6 +468,24 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         self.eigenvalues = lam
         self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass) * self.unit_scale**2
         psi *= self.unit_scale   # a fresh array
+        return self._normalized(psi)
+
+    def _normalized(self, psi: np.ndarray) -> np.ndarray:
+        """Rows scaled to unit norm with ``units="normalized"`` (in place), else ``psi``.
+
+        The truncation bound ``b`` on the squared distances becomes one on the normalised
+        ones: each row's squared norm :math:`k_{2t}(x,x)` is off by at most ``b / 2`` (half a
+        squared distance to a far point), so :math:`\bar d^2` moves by at most about
+        ``2 b / min_x |psi_x|^2``."""
+        if self.units != "normalized":
+            return psi
+        norms = np.linalg.norm(psi, axis=1)
+        low = float(norms.min())
+        if not low > 0:
+            raise MetricError("a vertex has no heat at any kept eigenpair: cannot normalise its row "
+                              "(use units='raw')")
+        psi /= norms[:, None]
+        self.truncation_bound = float(2.0 * self.truncation_bound / low**2)
         return psi
 
     def __repr__(self) -> str:
