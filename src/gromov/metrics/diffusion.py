@@ -77,7 +77,7 @@ from ._base import MetricSolver, check_shape
 __all__ = [
     "affinity", "diffusion_operator", "cotan_laplacian", "brute_force_diffusion_distance",
     "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "DIFFUSION_KERNELS", "HEAT_UNITS",
-    "DEFAULT_TAU",
+    "DEFAULT_TAU", "DEFAULT_UNITS",
 ]
 
 logger = logging.getLogger(__name__)
