@@ -284,6 +284,13 @@ def test_units_option(tmp_path, capsys):
     assert main(["match", str(src), str(src), "--samples", "6", "--units", "length", "--json"]) == 0
     opts = json.loads(capsys.readouterr().out)["metric_options"]
     assert opts == {"kernel": "heat", "units": "length", "fill_holes": 0.5}
+    # a correspondence defaults to normalised heat distributions, unless units or tau are given
+    assert main(["match", str(src), str(src), "--samples", "6", "--json"]) == 0
+    opts = json.loads(capsys.readouterr().out)["metric_options"]
+    assert opts == {"kernel": "heat", "units": "normalized", "fill_holes": 0.5}
+    assert main(["match", str(src), str(src), "--samples", "6", "--tau", "0.01", "--json"]) == 0
+    opts = json.loads(capsys.readouterr().out)["metric_options"]
+    assert opts == {"kernel": "heat", "tau": 0.01, "fill_holes": 0.5}   # the solver's raw default
     # a constant factor, sqrt(32 pi) tau area (HeatDiffusionSolver)
     area = icosphere(2).area
     np.testing.assert_allclose(runs["length"], runs["raw"] * np.sqrt(32 * np.pi) * 0.005 * area, rtol=1e-9)

@@ -72,6 +72,46 @@ def test_quick_run_correspondence_is_measured(quick_run):
             assert p["best"] == min(p["direct"], p["mirrored"])
 
 
+def test_correspondence_uses_its_own_diffusion_metric(quick_run):
+    """Recognition ranks by the raw heat distances; the correspondence pairs are matched again
+    with normalised heat distributions (correspondence_options); geodesic maps are shared."""
+    _, out = quick_run
+    r = json.loads((out / "results.json").read_text())
+    rec_opts, corr_opts = r["params"]["metric_options"], r["params"]["correspondence_options"]
+    assert "units" not in rec_opts["diffusion"] and corr_opts["diffusion"]["units"] == "normalized"
+    assert corr_opts["geodesic"] == rec_opts["geodesic"]
+    assert "recognition_metric" in r["correspondence"]["diffusion"]
+    assert "recognition_metric" not in r["correspondence"]["geodesic"]
+    for exp in ("weld", "holes"):
+        assert f"{exp}.diffusion.correspondence_s" in r["timings"]
+        assert f"{exp}.geodesic.correspondence_s" not in r["timings"]
+    # geodesic pairs are the recognition's maps: their GH estimate is the matrix entry (unless
+    # the orientation preference replaced the map); diffusion pairs are other maps, under
+    # another metric
+    same = {"geodesic": 0, "diffusion": 0}
+    for m in same:
+        for p in r["correspondence"][m]["pairs"]:
+            for exp in ("weld", "holes"):
+                rec = r["recognition"][exp]
+                if p["x"] in rec["entries"] and p["y"] in rec["entries"]:
+                    i, j = rec["entries"].index(p["x"]), rec["entries"].index(p["y"])
+                    same[m] += abs(rec[m]["relative"][i][j] - p["relative_distance"]) < 1e-6
+    n = len(r["correspondence"]["geodesic"]["pairs"])
+    assert same["geodesic"] >= n / 2 and same["diffusion"] == 0
+
+
+def test_correspondence_options():
+    from gromov.metrics.diffusion import CORRESPONDENCE_UNITS, correspondence_options
+
+    assert correspondence_options("diffusion", None) == {"units": CORRESPONDENCE_UNITS}
+    given = {"kernel": "heat", "fill_holes": 0.5}
+    assert correspondence_options("diffusion", given) == {**given, "units": CORRESPONDENCE_UNITS}
+    assert given == {"kernel": "heat", "fill_holes": 0.5}   # not changed in place
+    for opts in ({"units": "raw"}, {"tau": 0.01}, {"kernel": "connectivity"}, {"kernel": "biharmonic"}):
+        assert correspondence_options("diffusion", opts) == opts
+    assert correspondence_options("geodesic", {}) == {}
+
+
 def test_reflection_map_of_a_symmetric_sheet():
     g = grid(9, 5)   # symmetric about the middle of its x range
     m = reflection_map(g)

@@ -105,9 +105,9 @@ def _diffusion_options(args) -> dict:
     return opts
 
 
-def _add_heat_args(p: argparse.ArgumentParser) -> None:
+def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
     """``--tau``, ``--units`` and ``--fill-holes`` (the diffusion metric's), for ``match``,
-    ``distances`` and ``reproduce``."""
+    ``distances`` and ``reproduce``; ``units_default``: the help's words for the default."""
     from .metrics.diffusion import DEFAULT_UNITS, HEAT_UNITS
 
     p.add_argument("--tau", type=float, default=None,
@@ -116,13 +116,14 @@ def _add_heat_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--units", choices=HEAT_UNITS, default=None,
                    help="heat-kernel diffusion distance between normalised heat distributions "
                         "(normalized), in units of 1/length (raw) or scaled to the geodesic "
-                        "distance below the diffusion radius (length); default " + DEFAULT_UNITS)
+                        "distance below the diffusion radius (length); default "
+                        + (units_default or DEFAULT_UNITS))
     p.add_argument("--fill-holes", type=float, default=None, metavar="F",
                    help="diffusion: close boundary loops shorter than F * sqrt(area of their "
                         "component) before computing the metric (default 0.5; 0 leaves holes open)")
 
 
-def _add_metric_args(p: argparse.ArgumentParser) -> None:
+def _add_metric_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
     p.add_argument("--metric", choices=("geodesic", "diffusion", "euclidean"), default="diffusion",
                    help="distance on the surface (default: diffusion)")
     p.add_argument("--geodesic-method", choices=("fmm", "heat", "exact", "dijkstra"), default=None,
@@ -136,7 +137,7 @@ def _add_metric_args(p: argparse.ArgumentParser) -> None:
                         "biharmonic distance (heat-kernel distances integrated over all times)")
     p.add_argument("--steps", type=_positive_int, default=None,
                    help="diffusion steps m of the graph kernels (default 50)")
-    _add_heat_args(p)
+    _add_heat_args(p, units_default)
 
 
 def _load(path: str):
@@ -245,13 +246,15 @@ def _norm_arg(text: str) -> str:
 
 def cmd_match(args) -> int:
     from .gh import ShapeMetric, match
+    from .metrics.diffusion import correspondence_options
 
+    options = correspondence_options(args.metric, _metric_options(args))
     shapes = []
     for path in (args.x, args.y):
         shape = _load(path)
         try:
             shapes.append(ShapeMetric(shape, args.metric, resolution=args.resolution,
-                                      metric_options=_metric_options(args)))
+                                      metric_options=options))
         except TypeError:
             raise _UserError(f"{path}: matching needs a triangle mesh, got a point cloud") from None
     for path, s in zip((args.x, args.y), shapes):
@@ -280,7 +283,7 @@ def cmd_match(args) -> int:
     if args.plot:
         _plot_match(r, shapes, args)
     if args.json:   # the metric's options too: the distance's units depend on them
-        print(json.dumps({**r.to_dict(), "metric_options": _metric_options(args)}))
+        print(json.dumps({**r.to_dict(), "metric_options": options}))
     else:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
               f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
@@ -605,7 +608,10 @@ def cmd_reproduce(args) -> int:
     print(f"{r['dataset']}{' (quick)' if r['quick'] else ''}: {r['seconds_total']:.0f} s; "
           f"report {os.path.join(args.out, 'index.html')}")
     opts = r["params"]["metric_options"]["diffusion"]
-    print("  diffusion metric: " + ", ".join(f"{k}={v}" for k, v in opts.items())
+    copts = r["params"]["correspondence_options"]["diffusion"]
+    words = lambda o: ", ".join(f"{k}={v}" for k, v in o.items())  # noqa: E731
+    print("  diffusion metric: " + words(opts)
+          + ("" if copts == opts else f" (recognition); {words(copts)} (correspondence)")
           + f"; welds: {r['params']['weld_join']}")
     other = other_classes(r)
     if other:
@@ -659,7 +665,7 @@ def build_parser() -> argparse.ArgumentParser:
     q = sub.add_parser("match", help="Gromov-Hausdorff distance and correspondence of two shapes")
     q.add_argument("x", help="first mesh")
     q.add_argument("y", help="second mesh")
-    _add_metric_args(q)
+    _add_metric_args(q, "normalized (the correspondence's; raw when --tau is given)")
     q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
     q.add_argument("--norm", type=_norm_arg, default="l2", help="l2 (default), linf or p:VALUE")
     q.add_argument("--solver", choices=("gmds", "gw"), default="gmds",
@@ -736,7 +742,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
                    help="diffusion metric: heat kernel (default), the paper's connectivity-kernel graph "
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
-    _add_heat_args(q)
+    _add_heat_args(q, "raw for recognition (the EERs), normalized for the correspondence (d(C,C0), "
+                      "TOPKIDS); --units or --tau given: the same metric for both")
     q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")

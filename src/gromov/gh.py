@@ -23,6 +23,7 @@ from .errors import GromovWarning
 from .gmds import SurfaceDistance, SurfacePoints, SymmetricGMDS, norm_value, parse_norm, trimmed_rms
 from .mesh import Mesh, as_mesh
 from .metrics import metric_solver
+from .metrics.diffusion import correspondence_options
 from .orientation import orientation_agreements, outward_normals
 from .resolution import WorkingMesh, working_mesh
 from .sampling import farthest_point_sampling
@@ -801,6 +802,12 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     resolution : int or None, default 3000
         Working mesh size when X or Y are not prepared already.
     metric_options : dict, optional
+        Options of the metric (:func:`gromov.metric_solver`) for shapes not prepared yet.
+        For a correspondence, the heat-kernel diffusion metric defaults to normalised heat
+        distributions (``units="normalized"``, tau 0.01) unless ``units`` or ``tau`` is given
+        (:func:`gromov.metrics.diffusion.correspondence_options`); GH distance matrices
+        (:func:`gromov.experiments.pairwise.gh_matrix`, ``gromov distances``) keep the raw
+        heat distances, which separate classes better (README, "Choices worth knowing").
     max_iter, tol : GMDS sweeps and relative stopping tolerance.
     radius : float, optional
         Partial matching: only pairs of samples closer than ``radius`` count.
@@ -888,6 +895,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
                          f"{coarse_stages!r}") from None
     if not coarse_stages or any(c < 1 or (k is not None and k < 1) for c, k in coarse_stages):
         raise ValueError(f"coarse_stages must be non-empty pairs of positive sizes, got {coarse_stages!r}")
+    metric_options = correspondence_options(metric, metric_options)
     sx = _as_shape(X, metric, resolution, metric_options, "X")
     sy = _as_shape(Y, metric, resolution, metric_options, "Y")
     for name, s in (("X", sx), ("Y", sy)):

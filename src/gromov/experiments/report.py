@@ -671,6 +671,21 @@ def _correspondence(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[
         parts.append(_table(("metric", "condition", "ours, all classes", "ours, direct only",
                              "ours, cats",
                              "paper, cats", "ours − paper", "verdict"), rows))
+        own = [m for m in metrics if isinstance(corr[m].get("recognition_metric"), Mapping)]
+        if own:
+            parts.append(
+                "<p>The correspondence of " + ", ".join(_esc(m) for m in own) + " is computed with "
+                "its own metric options, not the recognition's (README, “Choices worth knowing”): "
+                + "; ".join(f"{_esc(m)}: {_esc(_get(results, 'params', 'correspondence_options', m))} "
+                            f"(recognition: {_esc(_get(results, 'params', 'metric_options', m))})"
+                            for m in own)
+                + ". The recognition metric's own maps of the same pairs, for comparison:</p>")
+            orow = [(m, _CONDITIONS.get(c, c), _fix4(corr[m]["recognition_metric"][c]),
+                     _fix4(corr[m]["recognition_metric"].get(f"{c}_direct")))
+                    for m in own for c in _ordered([k for k in corr[m]["recognition_metric"]
+                                                    if k in _CONDITIONS], tuple(_CONDITIONS))]
+            parts.append(_table(("metric", "condition", "recognition metric, all classes",
+                                 "direct only"), orow))
         if classes:
             cols = [(metric, cond) for metric in metrics
                     for cond in _ordered([c for c in corr[metric] if c in _CONDITIONS],

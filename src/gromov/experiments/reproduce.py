@@ -15,8 +15,12 @@ What runs (:func:`reproduce`):
 2. **Recognition.** For each experiment and metric (geodesic, diffusion), the pairwise GH
    matrix (each shape's metric once, pairs in parallel), the ROC and equal error rate over
    all pairs (positives: same class), nearest-neighbour accuracy, MDS maps.
-3. **Correspondence.** From the same runs, the matches of each class's reference pose with
-   its deformations, clean, welded and with holes: the paper's :math:`d(C, C_0)`, measured
+3. **Correspondence.** The matches of each class's reference pose with its deformations,
+   clean, welded and with holes -- from the same runs for the geodesic metric; for the
+   heat-kernel diffusion metric matched again with normalised heat distributions
+   (:func:`gromov.metrics.diffusion.correspondence_options`: each task its own units,
+   chosen on the validation sets; the recognition metric's own maps are reported beside
+   them as ``recognition_metric``) -- and the paper's :math:`d(C, C_0)`, measured
    in the *geodesic* metric of the *clean* shapes for both matching metrics (so a weld's
    shortcut cannot make an error look small, and the two metrics are judged by the same
    ruler), divided by the clean shape's geodesic diameter. Bodies are left/right symmetric:
@@ -48,6 +52,7 @@ from ..errors import GromovError
 from ..gh import ShapeMetric
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
+from ..metrics.diffusion import correspondence_options
 from ..resolution import WorkingMesh, simplify
 from . import datasets
 from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
@@ -94,7 +99,12 @@ class Settings:
     seed : int
         Sampling seed of every match (perturbation seeds are fixed per entry).
     metric_options : dict
-        Per metric, options for :func:`gromov.metric_solver`.
+        Per metric, options for :func:`gromov.metric_solver`: the recognition's.
+    correspondence_options : dict
+        Per metric, the options the correspondence (d(C, C0), TOPKIDS) is computed with
+        (:func:`gromov.metrics.diffusion.correspondence_options` of ``metric_options``); where
+        they differ from ``metric_options``, the correspondence pairs are matched again with
+        them.
     rank_by : {"trimmed", "gh"}
         What recognition ranks pairs by (:data:`RANK_BY`).
     """
@@ -109,6 +119,7 @@ class Settings:
     seed: int = 0
     metric_options: dict = field(default_factory=lambda: {m: {} for m in METRICS})
     rank_by: str = "trimmed"
+    correspondence_options: dict = field(default_factory=lambda: {m: {} for m in METRICS})
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -376,11 +387,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     items = [shapes.entry(e) for e in entries]
     labels = np.array([s.cls for s in items])
     perturbed = np.array([s.kind != "clean" for s in items])
-    # the correspondence pairs: each class's reference (first of its class) with the others
-    first = {}
-    for i, s in enumerate(items):
-        first.setdefault(s.cls, i)
-    keep = [(first[s.cls], i) for i, s in enumerate(items) if i != first[s.cls] and s.pose != 0]
+    keep = _correspondence_pairs(items)
     rec = {"entries": [s.label for s in items], "classes": list(dict.fromkeys(labels.tolist())),
            "labels": labels.tolist(), "perturbed": perturbed.tolist(),
            "shapes": {s.label: s.info for s in items}}
@@ -432,10 +439,47 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     return rec
 
 
-def _correspondence(matches: dict, shapes: _Shapes, quiet: bool) -> dict:
+def _correspondence_pairs(items) -> list[tuple[int, int]]:
+    """The correspondence pairs: each class's reference (first of its class) with the others."""
+    first = {}
+    for i, s in enumerate(items):
+        first.setdefault(s.cls, i)
+    return [(first[s.cls], i) for i, s in enumerate(items) if i != first[s.cls] and s.pose != 0]
+
+
+def _distinct_correspondence(st: Settings, metric: str) -> bool:
+    return st.correspondence_options[metric] != st.metric_options[metric]
+
+
+def _correspondence_runs(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, quiet: bool,
+                         timings: dict, matches: dict) -> None:
+    """Match the correspondence pairs of one experiment again with the correspondence's
+    metric options, for each metric whose options differ from the recognition's; pairs
+    already matched (a clean deformation is in both experiments) are not run twice."""
+    items = [shapes.entry(e) for e in entries]
+    for metric in METRICS:
+        if not _distinct_correspondence(st, metric):
+            continue
+        t = time.perf_counter()
+        pairs = [(i, j) for i, j in _correspondence_pairs(items)
+                 if (metric, items[i].label, items[j].label) not in matches]
+        used = sorted({k for ij in pairs for k in ij})
+        index = {k: n for n, k in enumerate(used)}
+        results = match_pairs([items[k].mesh for k in used], [(index[i], index[j]) for i, j in pairs],
+                              metric, n_samples=st.n_samples, seed=st.seed, resolution=None,
+                              metric_options=st.correspondence_options[metric], jobs=jobs,
+                              progress=not quiet)
+        for (i, j), res in zip(pairs, results):
+            matches[metric, items[i].label, items[j].label] = res
+        timings[f"{name}.{metric}.correspondence_s"] = round(time.perf_counter() - t, 2)
+        _say(f"  {name}/{metric}: {len(pairs)} correspondence pairs matched with "
+             f"{st.correspondence_options[metric]} ({time.perf_counter() - t:.0f} s)", quiet)
+
+
+def _correspondence(matches: dict, shapes: _Shapes, quiet: bool, metrics=METRICS, say: bool = True) -> dict:
     """d(C, C0) per metric, condition and class from the kept matches."""
     out = {}
-    for metric in METRICS:
+    for metric in metrics:
         per = {}   # (cls, condition) -> list of (best, direct)
         pairs = []
         for (m, xl, yl), res in matches.items():
@@ -461,7 +505,7 @@ def _correspondence(matches: dict, shapes: _Shapes, quiet: bool) -> dict:
                 entry[f"{kind}_pairs"] = len(qs)
         out[metric] = entry
         _say(f"  correspondence {metric}: " + ", ".join(
-            f"{k} {entry[k]:.4f}" for k in ("clean", "weld", "holes") if k in entry), quiet)
+            f"{k} {entry[k]:.4f}" for k in ("clean", "weld", "holes") if k in entry), quiet or not say)
     return out
 
 
@@ -519,7 +563,7 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
     curves = {}
     for metric in METRICS:
         t = time.perf_counter()
-        shapes = [ShapeMetric(m, metric, working=w, metric_options=st.metric_options[metric])
+        shapes = [ShapeMetric(m, metric, working=w, metric_options=st.correspondence_options[metric])
                   for m, w in zip(meshes, works)]
         results = match_pairs(shapes, [(i, 0) for i in range(1, len(shapes))], metric,
                               n_samples=st.n_samples, seed=st.seed, resolution=None, jobs=jobs,
@@ -604,8 +648,11 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         Options of the diffusion metric (:func:`gromov.metric_solver`), e.g.
         ``{"kernel": "connectivity", "m": 50, "fill_holes": None}`` for the paper's graph diffusion
         exactly (small holes are closed first unless ``"fill_holes": None``) or
-        ``{"kernel": "biharmonic"}``; default: the heat kernel at tau = 0.005. Recorded in
-        ``params``.
+        ``{"kernel": "biharmonic"}``; default: the heat kernel, raw distances at tau = 0.005
+        for recognition and normalised heat distributions at tau = 0.01 for the correspondence
+        (d(C, C0), TOPKIDS); with ``units`` or ``tau`` given, the same options serve both
+        (:func:`gromov.metrics.diffusion.correspondence_options`). Recorded in ``params``
+        (``metric_options``, ``correspondence_options``).
     weld_join : {"pinch", "tube"}, default "pinch"
         How Experiment 1 welds (:func:`gromov.perturb.weld`): ``"pinch"`` merges two vertices
         where parts nearly touch -- the paper's *welded vertices*, a point-wise topology change
@@ -659,6 +706,9 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         st.metric_options["diffusion"] = dict(diffusion)
     # recorded as run: the library's hole filling applies unless the options say otherwise
     st.metric_options["diffusion"].setdefault("fill_holes", DIFFUSION_FILL_HOLES)
+    # the correspondence's own defaults (normalised heat distributions) unless units/tau given
+    st = replace(st, correspondence_options={m: correspondence_options(m, st.metric_options[m])
+                                             for m in METRICS})
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     collection = _collection(dataset, data)
@@ -679,17 +729,27 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     _say(f"  {len(exp1)} + {len(exp2)} shapes at {st.resolution or 'full'} resolution "
          f"({timings['shapes_s']:.0f} s)", quiet)
 
-    matches: dict = {}
-    recognition = {
-        "weld": _recognition("weld", exp1, shapes, st, jobs, out, quiet, timings, matches),
-        "holes": _recognition("holes", exp2, shapes, st, jobs, out, quiet, timings, matches),
-    }
+    matches: dict = {}      # the recognition's kept pairs
+    cmatches: dict = {}     # the correspondence pairs with the correspondence's options
+    recognition = {}
+    for name, exp in (("weld", exp1), ("holes", exp2)):
+        recognition[name] = _recognition(name, exp, shapes, st, jobs, out, quiet, timings, matches)
+        _correspondence_runs(name, exp, shapes, st, jobs, quiet, timings, cmatches)
     t = time.perf_counter()
-    correspondence = _correspondence(matches, shapes, quiet)
+    for key, res in matches.items():
+        if not _distinct_correspondence(st, key[0]):
+            cmatches[key] = res
+    correspondence = _correspondence(cmatches, shapes, quiet)
+    distinct = [m for m in METRICS if _distinct_correspondence(st, m)]
+    # the recognition metric's own maps too, for comparison
+    for metric, entry in _correspondence(matches, shapes, quiet, distinct, say=False).items():
+        correspondence[metric]["recognition_metric"] = {
+            k: entry[k] for k in ("clean", "weld", "holes", "clean_direct", "weld_direct", "holes_direct")
+            if k in entry}
     figures = {}
     for rec in recognition.values():
         figures.update(rec.pop("figures"))
-    figures.update(_correspondence_figures(matches, shapes, out))
+    figures.update(_correspondence_figures(cmatches, shapes, out))
     timings["correspondence_s"] = round(time.perf_counter() - t, 2)
 
     topkids = None
