@@ -56,6 +56,28 @@ def test_keep_returns_the_full_match_of_the_asked_pairs():
         gh_matrix(shapes[:3], "geodesic", n_samples=20, resolution=None, keep=[(2, 0)])
 
 
+def test_known_pairs_are_not_run_again():
+    """Pairs computed before (a set sharing shapes) give the same matrix and are not re-run."""
+    from gromov.experiments.pairwise import prepare
+
+    shapes, _ = _sheets()
+    prepared = prepare(shapes[:3], "geodesic", n_samples=20, resolution=None)
+    full = gh_matrix(prepared, "geodesic", n_samples=20, jobs=1, keep=[(0, 1)])
+    known = {(0, 1): (full.distance[0, 1], full.relative[0, 1], full.trimmed[0, 1], full.results[0, 1])}
+    again = gh_matrix(prepared, "geodesic", n_samples=20, jobs=1, keep=[(0, 1)], known=known)
+    for a in ("distance", "relative", "trimmed"):
+        np.testing.assert_array_equal(getattr(again, a), getattr(full, a))
+    assert again.results[0, 1] is full.results[0, 1]
+    # a known value is taken as given, not recomputed
+    fake = gh_matrix(prepared, "geodesic", n_samples=20, jobs=1, known={(1, 2): (7.0, 0.5, 0.25, None)})
+    assert fake.distance[1, 2] == fake.distance[2, 1] == 7.0 and fake.trimmed[2, 1] == 0.25
+    np.testing.assert_array_equal(fake.distance[0], full.distance[0])
+    with pytest.raises(ValueError, match="need their MatchResult"):
+        gh_matrix(prepared, "geodesic", n_samples=20, keep=[(1, 2)], known={(1, 2): (7.0, 0.5, 0.25, None)})
+    with pytest.raises(ValueError, match="known needs pairs"):
+        gh_matrix(prepared, "geodesic", n_samples=20, known={(2, 1): (7.0, 0.5, 0.25, None)})
+
+
 def test_prepare_computes_the_search_subsets_once_per_shape():
     from gromov.experiments.pairwise import _subsets, prepare
     from gromov.gh import DEFAULT_COARSE_STAGES, search_subsets

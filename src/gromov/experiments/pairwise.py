@@ -202,7 +202,7 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
-              keep=(), **match_options) -> PairwiseGH:
+              keep=(), known: dict | None = None, **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -221,6 +221,11 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         correspondence, not only the distance) is returned in ``results``: the result of
         ``match`` with the given ``orientation`` (default "prefer", the direct map of a
         symmetric body rather than its mirror image).
+    known : dict, optional
+        Pairs computed before with the same shapes, options and order (e.g. the shapes two
+        sets share): ``{(i, j): (distance, relative, trimmed, result)}``, ``result`` the
+        ``MatchResult`` (required for a pair in ``keep``, else may be None). They are not
+        run again.
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``...).
 
@@ -250,15 +255,23 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     bad = [ij for ij in keep if not 0 <= ij[0] < ij[1] < n]
     if bad:
         raise ValueError(f"keep needs pairs (i, j) with 0 <= i < j < {n}, got {sorted(bad)[:3]}")
-    pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+    known = {(int(i), int(j)): v for (i, j), v in (known or {}).items()}
+    bad = [ij for ij in known if not 0 <= ij[0] < ij[1] < n]
+    if bad:
+        raise ValueError(f"known needs pairs (i, j) with 0 <= i < j < {n}, got {sorted(bad)[:3]}")
+    missing = [ij for ij in keep if ij in known and known[ij][3] is None]
+    if missing:
+        raise ValueError(f"known pairs in keep need their MatchResult, missing for {sorted(missing)[:3]}")
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n) if (i, j) not in known]
     dist = np.zeros((n, n))
     rel = np.zeros((n, n))
     trim = np.zeros((n, n))
     kept = {}
-    for (i, j), (d, r, t, full) in zip(pairs, _run(prepared, pairs, keep, jobs, progress,
-                                                     f"{metric} GH pairs",
-                                                     dict(n_samples=n_samples, seed=seed, **match_options),
-                                                     matrix=True)):
+    runs = _run(prepared, pairs, keep, jobs, progress, f"{metric} GH pairs",
+                dict(n_samples=n_samples, seed=seed, **match_options), matrix=True) if pairs else []
+    for (i, j), (d, r, t, full) in zip(pairs + list(known), list(runs) + list(known.values())):
+        if full is not None and (i, j) not in keep:
+            full = None
         dist[i, j] = dist[j, i] = d
         rel[i, j] = rel[j, i] = r
         trim[i, j] = trim[j, i] = t

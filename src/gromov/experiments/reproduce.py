@@ -274,6 +274,10 @@ class _Shapes:
         self.shapes: dict[str, _Shape] = {}
         self.diameters: dict[tuple[str, int], float] = {}
         self.solvers: dict[tuple[str, int], object] = {}
+        # shapes two experiments share (the clean ones): metrics and GH pairs computed once
+        self.shared: set[str] = set()
+        self.prepared: dict[tuple[str, str], ShapeMetric] = {}
+        self.pairs: dict[tuple[str, str, str], tuple] = {}
 
     def work(self, cls: str, pose: int) -> WorkingMesh:
         key = (cls, pose)
@@ -383,7 +387,11 @@ def _json_default(o):
 # ----------------------------------------------------------------------------- recognition
 def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, out: Path,
                  quiet: bool, timings: dict, matches: dict) -> dict:
-    """Pairwise GH matrices of one experiment for both metrics, ROC/EER, MDS figures."""
+    """Pairwise GH matrices of one experiment for both metrics, ROC/EER, MDS figures.
+
+    Shapes in ``shapes.shared`` (in both experiments) keep their prepared metric and their
+    GH pairs for the other experiment, which does not compute them again (same shapes, same
+    order, same options: the same numbers)."""
     items = [shapes.entry(e) for e in entries]
     labels = np.array([s.cls for s in items])
     perturbed = np.array([s.kind != "clean" for s in items])
@@ -394,15 +402,27 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     curves = {}
     for metric in METRICS:
         t = time.perf_counter()
-        prepared = prepare([s.mesh for s in items], metric, n_samples=st.n_samples, seed=st.seed,
-                           resolution=None, metric_options=st.metric_options[metric], progress=not quiet)
+        prepared = prepare([shapes.prepared.get((metric, s.label), s.mesh) for s in items], metric,
+                           n_samples=st.n_samples, seed=st.seed, resolution=None,
+                           metric_options=st.metric_options[metric], progress=not quiet)
+        for s, sm in zip(items, prepared):
+            if s.label in shapes.shared:
+                shapes.prepared[metric, s.label] = sm
+        known = {(i, j): shapes.pairs[metric, items[i].label, items[j].label]
+                 for i in range(len(items)) for j in range(i + 1, len(items))
+                 if (metric, items[i].label, items[j].label) in shapes.pairs}
         if metric == "geodesic":   # the clean shapes' diameters, for the correspondence errors
             for s, sm in zip(items, prepared):
                 if s.kind == "clean":
                     shapes.diameters.setdefault((s.cls, s.pose), sm.diameter)
         timings[f"{name}.{metric}.metrics_s"] = round(time.perf_counter() - t, 2)
         r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
-                      progress=not quiet, keep=keep)
+                      progress=not quiet, keep=keep, known=known)
+        for i in range(len(items)):
+            for j in range(i + 1, len(items)):
+                if items[i].label in shapes.shared and items[j].label in shapes.shared:
+                    shapes.pairs[metric, items[i].label, items[j].label] = (
+                        r.distance[i, j], r.relative[i, j], r.trimmed[i, j], r.results.get((i, j)))
         timings[f"{name}.{metric}.pairs_s"] = round(r.seconds_match, 2)
         ranking = {"trimmed": r.trimmed, "gh": r.relative}
         rocs = {k: roc(m, labels) for k, m in ranking.items()}
@@ -725,6 +745,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     exp2 = datasets.experiment2(collection, st.experiment2)
     for e in exp1 + exp2:
         shapes.entry(e)
+    shapes.shared = {e.label for e in exp1} & {e.label for e in exp2}
     timings["shapes_s"] = round(time.perf_counter() - t, 2)
     _say(f"  {len(exp1)} + {len(exp2)} shapes at {st.resolution or 'full'} resolution "
          f"({timings['shapes_s']:.0f} s)", quiet)
