@@ -12,6 +12,8 @@ Run:  .venv/bin/python benchmarks/bench_match.py [--data DIR] [--json OUT]
    image and of the ground truth. TOSCA reference poses are mirror-symmetric; the mirror map
    (reflection through the bounding box's symmetry plane, nearest vertex) gives the error of
    the left/right-swapped reading too, and "best" takes the better of the two per match.
+   The metrics have the options `gromov.match` gives a correspondence (session 15: the
+   normalised heat distributions for diffusion, `correspondence_options`).
 2. Speed with metrics precomputed: one symmetric GMDS match of 100 samples per side
    (`gromov.match` on prepared shapes: initialisation, GMDS, mapping to the input meshes;
    also with ``search_vertices=500``) vs POT's `ot.gromov.gromov_wasserstein` on the same two
@@ -36,6 +38,7 @@ import gromov
 from gromov.evaluate import correspondence_error
 from gromov.experiments.reproduce import reflection_map
 from gromov.gh import ShapeMetric, match
+from gromov.metrics.diffusion import correspondence_options
 
 HERE = Path(__file__).resolve().parent
 CLASSES = ("cat", "dog", "david", "victoria")
@@ -63,8 +66,10 @@ def main(argv=None):
         sym = reflection_map(x_in)  # input ids; x_in numbers them 0..n-1
         shapes = {}
         for metric in ("geodesic", "diffusion"):
-            shapes[metric] = (ShapeMetric(x_in, metric, resolution=args.resolution),
-                              ShapeMetric(y_in, metric, resolution=args.resolution))
+            # the options gromov.match gives a correspondence (normalised heat for diffusion)
+            opts = correspondence_options(metric, None)
+            shapes[metric] = (ShapeMetric(x_in, metric, resolution=args.resolution, metric_options=opts),
+                              ShapeMetric(y_in, metric, resolution=args.resolution, metric_options=opts))
         ywork = shapes["geodesic"][1]  # errors: geodesic (fast marching) on cls1's working mesh
         for metric in ("geodesic", "diffusion"):
             sx, sy = shapes[metric]
