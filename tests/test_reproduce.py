@@ -112,6 +112,32 @@ def test_correspondence_options():
     assert correspondence_options("geodesic", {}) == {}
 
 
+def test_cached_rows_are_the_solvers_rows():
+    """A fast-marching row does not depend on the other sources of its call: cached rows are
+    the same numbers, each computed once."""
+    from gromov.experiments.reproduce import _CachedRows
+    from gromov.metrics import metric_solver
+    from gromov.shapes import icosphere
+
+    solver = metric_solver(icosphere(2), "geodesic")
+    calls = []
+
+    class Counting:
+        n_vertices = solver.n_vertices
+
+        def from_sources(self, s):
+            calls.append(len(s))
+            return solver.from_sources(s)
+
+    rows = _CachedRows(Counting())
+    a = rows.from_sources([5, 3, 5, 40])
+    b = rows.from_sources([40, 7, 3])
+    np.testing.assert_array_equal(a, solver.from_sources([5, 3, 5, 40]))
+    np.testing.assert_array_equal(b, solver.from_sources([40, 7, 3]))
+    np.testing.assert_array_equal(b[0], solver.from_sources([40])[0])   # alone, the same row
+    assert calls == [3, 1] and rows.from_sources([]).shape == (0, solver.n_vertices)
+
+
 def test_reflection_map_of_a_symmetric_sheet():
     g = grid(9, 5)   # symmetric about the middle of its x range
     m = reflection_map(g)

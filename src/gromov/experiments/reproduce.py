@@ -311,9 +311,10 @@ class _Shapes:
         return s
 
     def geodesic(self, cls: str, pose: int):
-        """Geodesic solver on the clean working mesh, one per shape (not per pair)."""
+        """Geodesic solver on the clean working mesh, one per shape (not per pair), its rows
+        cached (:class:`_CachedRows`)."""
         if (cls, pose) not in self.solvers:
-            self.solvers[cls, pose] = metric_solver(self.work(cls, pose).mesh, "geodesic")
+            self.solvers[cls, pose] = _CachedRows(metric_solver(self.work(cls, pose).mesh, "geodesic"))
         return self.solvers[cls, pose]
 
     def diameter(self, cls: str, pose: int) -> float:
@@ -325,6 +326,30 @@ class _Shapes:
         if key not in self.diameters:
             self.diameters[key] = float(np.max(self.geodesic(cls, pose).pairwise()))
         return self.diameters[key]
+
+
+class _CachedRows:
+    """A metric solver whose rows (``from_sources``) are each computed once.
+
+    The correspondence errors ask for the rows of the same ground-truth vertices many times
+    (every variant of a pose, both metrics, direct and mirrored): a row of the fast marching
+    does not depend on the other sources of its call, so the cached row is the same number."""
+
+    def __init__(self, solver):
+        self.solver = solver
+        self.rows: dict[int, np.ndarray] = {}
+
+    def pairwise(self):
+        return self.solver.pairwise()
+
+    def from_sources(self, sources) -> np.ndarray:
+        sources = np.asarray(sources, dtype=np.int64).ravel()
+        missing = np.array(sorted(set(sources.tolist()) - self.rows.keys()), dtype=np.int64)
+        if missing.size:
+            for v, row in zip(missing.tolist(), self.solver.from_sources(missing)):
+                self.rows[v] = row
+        return np.stack([self.rows[v] for v in sources.tolist()]) if sources.size else \
+            np.empty((0, self.solver.n_vertices))
 
 
 def _geodesic_errors(w: WorkingMesh, solver, images, truth) -> np.ndarray:
@@ -574,7 +599,7 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
     handles = [(2 - m.euler_characteristic) / 2 for m in meshes]
     timings["topkids.load_s"] = round(time.perf_counter() - t, 2)
     w0 = works[0]
-    geo0 = metric_solver(w0.mesh, "geodesic")
+    geo0 = _CachedRows(metric_solver(w0.mesh, "geodesic"))
     diam0 = float(np.max(geo0.pairwise()))
     sym0 = kids.symmetry(ref)
     area0 = float(meshes[0].area)
