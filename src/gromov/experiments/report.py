@@ -725,9 +725,15 @@ def _topkids(results: Mapping, figures: Mapping, out_dir: Path) -> str:
             bits.append(f"{tk['n_shapes']} shapes")
         if tk.get("reference") is not None:
             bits.append(f"each matched with the reference {tk['reference']}")
+        own = [m for m in _METRICS
+               if _get(results, "params", "correspondence_options", m) not in
+               (None, _get(results, "params", "metric_options", m))]
+        bits_own = "".join(f" The {_esc(m)} maps use the correspondence's options "
+                           f"{_esc(_get(results, 'params', 'correspondence_options', m))}."
+                           for m in own)
         parts.append(f"<p>SHREC'16 TOPKIDS (not in the paper){': ' if bits else ''}"
                      f"{_esc(', '.join(bits))}. Lower d(C, C<sub>0</sub>) and distortion are "
-                     "better.</p>")
+                     f"better.{bits_own}</p>")
         if metrics:
             rows = [[label] + [fmt(_get(tk, m, key)) for m in metrics]
                     for key, label, fmt in _TOPKIDS_ROWS
