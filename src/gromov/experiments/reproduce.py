@@ -343,13 +343,13 @@ class _CachedRows:
         return self.solver.pairwise()
 
     def from_sources(self, sources) -> np.ndarray:
-        sources = np.asarray(sources, dtype=np.int64).ravel()
-        missing = np.array(sorted(set(sources.tolist()) - self.rows.keys()), dtype=np.int64)
+        sources = np.asarray(sources, dtype=np.int64).ravel().tolist()
+        if not sources:
+            return np.empty((0, self.solver.n_vertices))
+        missing = np.array(sorted(set(sources) - self.rows.keys()), dtype=np.int64)
         if missing.size:
-            for v, row in zip(missing.tolist(), self.solver.from_sources(missing)):
-                self.rows[v] = row
-        return np.stack([self.rows[v] for v in sources.tolist()]) if sources.size else \
-            np.empty((0, self.solver.n_vertices))
+            self.rows.update(zip(missing.tolist(), self.solver.from_sources(missing)))
+        return np.stack([self.rows[v] for v in sources])
 
 
 def _geodesic_errors(w: WorkingMesh, solver, images, truth) -> np.ndarray:
