@@ -611,7 +611,8 @@ def cmd_reproduce(args) -> int:
     copts = r["params"]["correspondence_options"]["diffusion"]
     words = lambda o: ", ".join(f"{k}={v}" for k, v in o.items())  # noqa: E731
     print("  diffusion metric: " + words(opts)
-          + ("" if copts == opts else f" (recognition); {words(copts)} (correspondence)")
+          + ("" if copts == opts else f"; and {words(copts)}: the correspondence's, and recognition "
+             f"ranks by the geometric mean of both")
           + f"; welds: {r['params']['weld_join']}")
     other = other_classes(r)
     if other:
@@ -742,8 +743,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
                    help="diffusion metric: heat kernel (default), the paper's connectivity-kernel graph "
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
-    _add_heat_args(q, "raw for recognition (the EERs), normalized for the correspondence (d(C,C0), "
-                      "TOPKIDS); --units or --tau given: the same metric for both")
+    _add_heat_args(q, "normalized for the correspondence (d(C,C0), TOPKIDS), and recognition (the "
+                      "EERs) ranks by the geometric mean of the normalized and raw GH matrices; "
+                      "--units or --tau given: one metric for both")
     q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")
