@@ -116,6 +116,30 @@ def test_correspondence_options():
     assert correspondence_options("geodesic", {}) == {}
 
 
+def test_recognition_options_and_their_geometric_mean():
+    from gromov.experiments.pairwise import geometric_mean
+    from gromov.metrics.diffusion import recognition_options
+
+    given = {"kernel": "heat", "fill_holes": 0.5}
+    assert recognition_options("diffusion", given) == [given, {**given, "units": "normalized"}]
+    for opts in ({"units": "raw"}, {"tau": 0.01}, {"kernel": "biharmonic"}):
+        assert recognition_options("diffusion", opts) == [opts]
+    assert recognition_options("geodesic", None) == [{}]
+    rng = np.random.default_rng(0)
+    a, b = rng.random((5, 5)) + 0.1, rng.random((5, 5)) + 0.1
+    np.fill_diagonal(a, 0)
+    np.fill_diagonal(b, 0)
+    g = geometric_mean([a, b])
+    np.testing.assert_allclose(g, np.sqrt(a * b), rtol=1e-12)
+    assert np.all(np.diag(g) == 0) and geometric_mean([a]) is not None
+    np.testing.assert_allclose(geometric_mean([a, a]), a, rtol=1e-12)
+    np.testing.assert_allclose(geometric_mean([4 * a, b]), 2 * g, rtol=1e-12)  # scale: a factor
+    with pytest.raises(ValueError, match="different shapes"):
+        geometric_mean([a, b[:3, :3]])
+    with pytest.raises(ValueError, match="at least one"):
+        geometric_mean([])
+
+
 def test_cached_rows_are_the_solvers_rows():
     """A fast-marching row does not depend on the other sources of its call: cached rows are
     the same numbers, each computed once."""

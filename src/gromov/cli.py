@@ -362,8 +362,9 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
 
 
 def cmd_pairwise(args) -> int:
-    from .experiments.pairwise import available_cpus, gh_matrix
+    from .experiments.pairwise import available_cpus, geometric_mean, gh_matrix
     from .experiments.recognition import errors_at, mds_map, roc
+    from .metrics.diffusion import recognition_options
 
     n = len(args.files)
     if n < 2:
@@ -405,19 +406,25 @@ def cmd_pairwise(args) -> int:
         shapes.append(shape)
     options = _metric_options(args)
     t = time.perf_counter()
-    r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
-                  metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
-                  progress=not (args.quiet or args.json))
+    # the heat kernel without --units/--tau: a matrix under raw and one under normalised heat
+    # distances, ranked by their geometric mean (recognition_options), as gromov reproduce
+    sets = recognition_options(args.metric, options)
+    runs = [gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                      metric_options=o, seed=args.seed, jobs=args.jobs or available_cpus(),
+                      progress=not (args.quiet or args.json)) for o in sets]
+    r = runs[0]
+    rel, trim = geometric_mean([x.relative for x in runs]), geometric_mean([x.trimmed for x in runs])
     seconds = time.perf_counter() - t
-    D = r.trimmed if args.rank_by == "trimmed" else r.relative
+    D = trim if args.rank_by == "trimmed" else rel
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
     nearest = np.argmin(D + np.diag(np.full(n, np.inf)), axis=1)
     names = list(args.files)
     result = {"files": names, "metric": args.metric, "metric_options": options,
+              "combined_options": sets if len(sets) > 1 else None,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
               "ranked_by": args.rank_by,
-              "distance": r.distance.tolist(), "relative_distance": r.relative.tolist(),
-              "relative_trimmed_distance": r.trimmed.tolist(),
+              "distance": r.distance.tolist(), "relative_distance": rel.tolist(),
+              "relative_trimmed_distance": trim.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
               "seconds": seconds}
     if labels is not None:
@@ -426,7 +433,7 @@ def cmd_pairwise(args) -> int:
         same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
         result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None)
         if same.any() and not same.all():   # else all one class, or every shape its own: no EER
-            curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
+            curves = {k: roc(m, lab) for k, m in (("trimmed", trim), ("gh", rel))}
             result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
                           eer_trimmed=curves["trimmed"].eer,
                           errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold))
@@ -438,11 +445,12 @@ def cmd_pairwise(args) -> int:
         else:
             nan = float("nan")
             np.savez_compressed(out, files=np.array(names), distance=r.distance,
-                                relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
+                                relative_distance=rel, relative_trimmed_distance=trim,
                                 labels=np.array(labels if labels is not None else [], dtype=str),
                                 ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
                                 eer=nan if result.get("eer") is None else result["eer"],
                                 metric=args.metric, options=json.dumps(options),
+                                combined_options=json.dumps(result["combined_options"]),
                                 n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
         from .experiments.recognition import plot_mds
@@ -453,16 +461,18 @@ def cmd_pairwise(args) -> int:
     if args.json:
         print(json.dumps(result))
         return 0
-    print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric, {args.samples} samples per "
-          f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
+    both = (" (geometric mean of raw and normalised heat distances; --units to pick one)"
+            if len(sets) > 1 else "")
+    print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric{both}, {args.samples} samples "
+          f"per shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
     width = max(len(f) for f in names)
     for i, f in enumerate(names):
         j = nearest[i]
         mark = ""
         if labels is not None and labels[j] != labels[i]:
             mark = f"   <- another class ({labels[i]} vs {labels[j]})"
-        print(f"  {f:<{width}}  nearest {names[j]} ({r.relative[i, j]:.4%}; trimmed "
-              f"{r.trimmed[i, j]:.4%}){mark}")
+        print(f"  {f:<{width}}  nearest {names[j]} ({rel[i, j]:.4%}; trimmed "
+              f"{trim[i, j]:.4%}){mark}")
     if labels is not None:
         if result["eer"] is None:
             print("  labels: no equal error rate (needs two shapes of a class and two classes); "

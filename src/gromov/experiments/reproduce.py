@@ -53,10 +53,10 @@ from ..errors import GromovError
 from ..gh import ShapeMetric
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
-from ..metrics.diffusion import DEFAULT_UNITS, correspondence_options
+from ..metrics.diffusion import DEFAULT_UNITS, correspondence_options, recognition_options
 from ..resolution import WorkingMesh, simplify
 from . import datasets
-from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
+from .pairwise import available_cpus, geometric_mean, gh_matrix, match_pairs, prepare
 from .recognition import errors_at, mds_map, plot_mds, plot_roc, roc
 
 __all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS", "RANK_BY"]
@@ -419,13 +419,6 @@ def _units_tag(options: dict) -> str:
     return str(options["kernel"])
 
 
-def _geometric_mean(mats: list) -> np.ndarray:
-    """Elementwise geometric mean of dissimilarity matrices (one matrix: itself)."""
-    if len(mats) == 1:
-        return mats[0]
-    return np.exp(np.mean([np.log(np.maximum(m, 1e-300)) for m in mats], axis=0)) * (mats[0] > 0)
-
-
 def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, out: Path,
                  quiet: bool, timings: dict, matches: dict, rmatches: dict) -> dict:
     """Pairwise GH matrices of one experiment for both metrics, ROC/EER, MDS figures.
@@ -449,9 +442,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     n = len(items)
     for metric in METRICS:
         t = time.perf_counter()
-        sets = [st.metric_options[metric]]
-        if _distinct_correspondence(st, metric):
-            sets.append(st.correspondence_options[metric])
+        sets = recognition_options(metric, st.metric_options[metric])
         runs = []
         for k, opts in enumerate(sets):
             tag = "" if k == 0 else f".{_units_tag(opts)}"
@@ -480,8 +471,8 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
                             r.distance[i, j], r.relative[i, j], r.trimmed[i, j], r.results.get((i, j)))
             timings[f"{name}.{metric}{tag}.pairs_s"] = round(r.seconds_match, 2)
             runs.append(r)
-        ranking = {"trimmed": _geometric_mean([r.trimmed for r in runs]),
-                   "gh": _geometric_mean([r.relative for r in runs])}
+        ranking = {"trimmed": geometric_mean([r.trimmed for r in runs]),
+                   "gh": geometric_mean([r.relative for r in runs])}
         rocs = {k: roc(m, labels) for k, m in ranking.items()}
         D, curve = ranking[st.rank_by], rocs[st.rank_by]
         curves[metric] = curve
