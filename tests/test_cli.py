@@ -375,19 +375,6 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     # labels given by hand; one label per class only: no EER, said so
     assert main([*base, "--labels", "a,b,c,d"]) == 0
     assert "no equal error rate" in capsys.readouterr().out
-    assert res["combined_options"] is None   # geodesic: one matrix
-    # the heat kernel without --units: the geometric mean of the raw and normalised matrices
-    diff = ["pairwise", *map(str, files), "--samples", "20", "--jobs", "1", "--labels-from-names", "--json"]
-    runs = {}
-    for extra in ([], ["--units", "raw"], ["--units", "normalized"]):
-        assert main([*diff, *extra]) == 0
-        runs[tuple(extra)] = json.loads(capsys.readouterr().out)
-    both, raw, norm = runs[()], runs[("--units", "raw")], runs[("--units", "normalized")]
-    assert [o.get("units") for o in both["combined_options"]] == [None, "normalized"]
-    assert raw["combined_options"] is None and norm["combined_options"] is None
-    for key in ("relative_distance", "relative_trimmed_distance"):
-        np.testing.assert_allclose(both[key], np.sqrt(np.array(raw[key]) * np.array(norm[key])), rtol=1e-12)
-    assert both["eer"] == 0.0 and both["nearest"] == res["nearest"]
 
 
 def test_match_plot_draws_the_correspondence(tmp_path, capsys, monkeypatch):

@@ -362,9 +362,8 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
 
 
 def cmd_pairwise(args) -> int:
-    from .experiments.pairwise import available_cpus, geometric_mean, gh_matrix
+    from .experiments.pairwise import available_cpus, gh_matrix
     from .experiments.recognition import errors_at, mds_map, roc
-    from .metrics.diffusion import recognition_options
 
     n = len(args.files)
     if n < 2:
@@ -406,25 +405,19 @@ def cmd_pairwise(args) -> int:
         shapes.append(shape)
     options = _metric_options(args)
     t = time.perf_counter()
-    # the heat kernel without --units/--tau: a matrix under raw and one under normalised heat
-    # distances, ranked by their geometric mean (recognition_options), as gromov reproduce
-    sets = recognition_options(args.metric, options)
-    runs = [gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
-                      metric_options=o, seed=args.seed, jobs=args.jobs or available_cpus(),
-                      progress=not (args.quiet or args.json)) for o in sets]
-    r = runs[0]
-    rel, trim = geometric_mean([x.relative for x in runs]), geometric_mean([x.trimmed for x in runs])
+    r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                  metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
+                  progress=not (args.quiet or args.json))
     seconds = time.perf_counter() - t
-    D = trim if args.rank_by == "trimmed" else rel
+    D = r.trimmed if args.rank_by == "trimmed" else r.relative
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
     nearest = np.argmin(D + np.diag(np.full(n, np.inf)), axis=1)
     names = list(args.files)
     result = {"files": names, "metric": args.metric, "metric_options": options,
-              "combined_options": sets if len(sets) > 1 else None,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
               "ranked_by": args.rank_by,
-              "distance": r.distance.tolist(), "relative_distance": rel.tolist(),
-              "relative_trimmed_distance": trim.tolist(),
+              "distance": r.distance.tolist(), "relative_distance": r.relative.tolist(),
+              "relative_trimmed_distance": r.trimmed.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
               "seconds": seconds}
     if labels is not None:
@@ -433,7 +426,7 @@ def cmd_pairwise(args) -> int:
         same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
         result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None)
         if same.any() and not same.all():   # else all one class, or every shape its own: no EER
-            curves = {k: roc(m, lab) for k, m in (("trimmed", trim), ("gh", rel))}
+            curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
             result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
                           eer_trimmed=curves["trimmed"].eer,
                           errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold))
@@ -445,12 +438,11 @@ def cmd_pairwise(args) -> int:
         else:
             nan = float("nan")
             np.savez_compressed(out, files=np.array(names), distance=r.distance,
-                                relative_distance=rel, relative_trimmed_distance=trim,
+                                relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
                                 labels=np.array(labels if labels is not None else [], dtype=str),
                                 ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
                                 eer=nan if result.get("eer") is None else result["eer"],
                                 metric=args.metric, options=json.dumps(options),
-                                combined_options=json.dumps(result["combined_options"]),
                                 n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
         from .experiments.recognition import plot_mds
@@ -461,18 +453,16 @@ def cmd_pairwise(args) -> int:
     if args.json:
         print(json.dumps(result))
         return 0
-    both = (" (geometric mean of raw and normalised heat distances; --units to pick one)"
-            if len(sets) > 1 else "")
-    print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric{both}, {args.samples} samples "
-          f"per shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
+    print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric, {args.samples} samples per "
+          f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
     width = max(len(f) for f in names)
     for i, f in enumerate(names):
         j = nearest[i]
         mark = ""
         if labels is not None and labels[j] != labels[i]:
             mark = f"   <- another class ({labels[i]} vs {labels[j]})"
-        print(f"  {f:<{width}}  nearest {names[j]} ({rel[i, j]:.4%}; trimmed "
-              f"{trim[i, j]:.4%}){mark}")
+        print(f"  {f:<{width}}  nearest {names[j]} ({r.relative[i, j]:.4%}; trimmed "
+              f"{r.trimmed[i, j]:.4%}){mark}")
     if labels is not None:
         if result["eer"] is None:
             print("  labels: no equal error rate (needs two shapes of a class and two classes); "
@@ -621,8 +611,7 @@ def cmd_reproduce(args) -> int:
     copts = r["params"]["correspondence_options"]["diffusion"]
     words = lambda o: ", ".join(f"{k}={v}" for k, v in o.items())  # noqa: E731
     print("  diffusion metric: " + words(opts)
-          + ("" if copts == opts else f"; and {words(copts)}: the correspondence's, and recognition "
-             f"ranks by the geometric mean of both")
+          + ("" if copts == opts else f" (recognition); {words(copts)} (correspondence)")
           + f"; welds: {r['params']['weld_join']}")
     other = other_classes(r)
     if other:
@@ -753,9 +742,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
                    help="diffusion metric: heat kernel (default), the paper's connectivity-kernel graph "
                         "diffusion (m = 50), Gaussian k-NN graph diffusion, or the biharmonic distance")
-    _add_heat_args(q, "normalized for the correspondence (d(C,C0), TOPKIDS), and recognition (the "
-                      "EERs) ranks by the geometric mean of the normalized and raw GH matrices; "
-                      "--units or --tau given: one metric for both")
+    _add_heat_args(q, "raw for recognition (the EERs), normalized for the correspondence (d(C,C0), "
+                      "TOPKIDS); --units or --tau given: the same metric for both")
     q.add_argument("--weld-join", choices=WELD_JOINS, default="pinch",
                    help="Experiment 1 welds: merge two vertices (pinch, the paper's welded vertices; "
                         "default) or join their 1-rings by a short handle (tube)")

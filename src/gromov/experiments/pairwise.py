@@ -19,7 +19,7 @@ import numpy as np
 from ..gh import DEFAULT_COARSE_STAGES, ShapeMetric, match, search_subsets
 from ..metrics.diffusion import correspondence_options
 
-__all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare", "geometric_mean"]
+__all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
 logger = logging.getLogger(__name__)
 
@@ -64,21 +64,6 @@ def _pair(ij):
         if orientation == "prefer" and not r.orientation > 0.5:  # the same run, then more
             full = match(x, y, x.metric, orientation="prefer", **options)
     return r.distance, r.relative_distance, r.relative_trimmed, full
-
-
-def geometric_mean(mats) -> np.ndarray:
-    """Elementwise geometric mean of dissimilarity matrices (one matrix: itself): how
-    recognition combines the GH matrices of several option sets of one metric
-    (:func:`gromov.metrics.diffusion.recognition_options`). Zero where the first is zero (the
-    diagonal)."""
-    mats = [np.asarray(m, dtype=np.float64) for m in mats]
-    if not mats:
-        raise ValueError("need at least one matrix")
-    if len(mats) == 1:
-        return mats[0]
-    if any(m.shape != mats[0].shape for m in mats):
-        raise ValueError(f"matrices of different shapes: {[m.shape for m in mats]}")
-    return np.exp(np.mean([np.log(np.maximum(m, 1e-300)) for m in mats], axis=0)) * (mats[0] > 0)
 
 
 def available_cpus() -> int:

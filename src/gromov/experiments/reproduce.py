@@ -14,14 +14,13 @@ What runs (:func:`reproduce`):
    keeps the file's vertex numbering in ``input_ids``, so the ground truth is the identity.
 2. **Recognition.** For each experiment and metric (geodesic, diffusion), the pairwise GH
    matrix (each shape's metric once, pairs in parallel), the ROC and equal error rate over
-   all pairs (positives: same class), nearest-neighbour accuracy, MDS maps. The heat-kernel
-   diffusion metric gets two matrices, raw heat distances and normalised heat distributions,
-   and pairs are ranked by their geometric mean (session 15, chosen on the validation sets).
-3. **Correspondence.** From the same runs, the matches of each class's reference pose with
-   its deformations, clean, welded and with holes -- for the heat-kernel diffusion metric
-   those under normalised heat distributions
-   (:func:`gromov.metrics.diffusion.correspondence_options`; the raw distances' maps are
-   reported beside them as ``recognition_metric``) -- and the paper's :math:`d(C, C_0)`, measured
+   all pairs (positives: same class), nearest-neighbour accuracy, MDS maps.
+3. **Correspondence.** The matches of each class's reference pose with its deformations,
+   clean, welded and with holes -- from the same runs for the geodesic metric; for the
+   heat-kernel diffusion metric matched again with normalised heat distributions
+   (:func:`gromov.metrics.diffusion.correspondence_options`: each task its own units,
+   chosen on the validation sets; the recognition metric's own maps are reported beside
+   them as ``recognition_metric``) -- and the paper's :math:`d(C, C_0)`, measured
    in the *geodesic* metric of the *clean* shapes for both matching metrics (so a weld's
    shortcut cannot make an error look small, and the two metrics are judged by the same
    ruler), divided by the clean shape's geodesic diameter. Bodies are left/right symmetric:
@@ -53,10 +52,10 @@ from ..errors import GromovError
 from ..gh import ShapeMetric
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
-from ..metrics.diffusion import DEFAULT_UNITS, correspondence_options, recognition_options
+from ..metrics.diffusion import correspondence_options
 from ..resolution import WorkingMesh, simplify
 from . import datasets
-from .pairwise import available_cpus, geometric_mean, gh_matrix, match_pairs, prepare
+from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
 from .recognition import errors_at, mds_map, plot_mds, plot_roc, roc
 
 __all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS", "RANK_BY"]
@@ -104,8 +103,8 @@ class Settings:
     correspondence_options : dict
         Per metric, the options the correspondence (d(C, C0), TOPKIDS) is computed with
         (:func:`gromov.metrics.diffusion.correspondence_options` of ``metric_options``); where
-        they differ from ``metric_options``, recognition computes a GH matrix under each and
-        ranks pairs by their geometric mean.
+        they differ from ``metric_options``, the correspondence pairs are matched again with
+        them.
     rank_by : {"trimmed", "gh"}
         What recognition ranks pairs by (:data:`RANK_BY`).
     """
@@ -411,23 +410,10 @@ def _json_default(o):
 
 
 # ----------------------------------------------------------------------------- recognition
-def _units_tag(options: dict) -> str:
-    """A short name of a diffusion option set, for timings and results (``units`` of the heat
-    kernel, else the kernel)."""
-    if options.get("kernel", "heat") == "heat":
-        return options.get("units", DEFAULT_UNITS)
-    return str(options["kernel"])
-
-
 def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, out: Path,
-                 quiet: bool, timings: dict, matches: dict, rmatches: dict) -> dict:
+                 quiet: bool, timings: dict, matches: dict) -> dict:
     """Pairwise GH matrices of one experiment for both metrics, ROC/EER, MDS figures.
 
-    A metric whose correspondence has its own options (the heat kernel: raw distances for
-    recognition, normalised heat distributions for the maps; :data:`Settings`) gets a GH
-    matrix under each, and recognition ranks pairs by the elementwise *geometric mean* of the
-    two (session 15; each also recorded with its own EERs under ``by_options``); the
-    correspondence's kept maps go to ``matches``, the recognition options' to ``rmatches``.
     Shapes in ``shapes.shared`` (in both experiments) keep their prepared metric and their
     GH pairs for the other experiment, which does not compute them again (same shapes, same
     order, same options: the same numbers)."""
@@ -439,45 +425,36 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
            "labels": labels.tolist(), "perturbed": perturbed.tolist(),
            "shapes": {s.label: s.info for s in items}}
     curves = {}
-    n = len(items)
     for metric in METRICS:
         t = time.perf_counter()
-        sets = recognition_options(metric, st.metric_options[metric])
-        runs = []
-        for k, opts in enumerate(sets):
-            tag = "" if k == 0 else f".{_units_tag(opts)}"
-            tk = time.perf_counter()
-            prepared = prepare([shapes.prepared.get((metric, k, s.label), s.mesh) for s in items], metric,
-                               n_samples=st.n_samples, seed=st.seed, resolution=None,
-                               metric_options=opts, progress=not quiet)
+        prepared = prepare([shapes.prepared.get((metric, s.label), s.mesh) for s in items], metric,
+                           n_samples=st.n_samples, seed=st.seed, resolution=None,
+                           metric_options=st.metric_options[metric], progress=not quiet)
+        for s, sm in zip(items, prepared):
+            if s.label in shapes.shared:
+                shapes.prepared[metric, s.label] = sm
+        known = {(i, j): shapes.pairs[metric, items[i].label, items[j].label]
+                 for i in range(len(items)) for j in range(i + 1, len(items))
+                 if (metric, items[i].label, items[j].label) in shapes.pairs}
+        if metric == "geodesic":   # the clean shapes' diameters, for the correspondence errors
             for s, sm in zip(items, prepared):
-                if s.label in shapes.shared:
-                    shapes.prepared[metric, k, s.label] = sm
-            known = {(i, j): shapes.pairs[metric, k, items[i].label, items[j].label]
-                     for i in range(n) for j in range(i + 1, n)
-                     if (metric, k, items[i].label, items[j].label) in shapes.pairs}
-            if metric == "geodesic":   # the clean shapes' diameters, for the correspondence errors
-                for s, sm in zip(items, prepared):
-                    if s.kind == "clean":
-                        shapes.diameters.setdefault((s.cls, s.pose), sm.diameter)
-            timings[f"{name}.{metric}{tag}.metrics_s"] = round(time.perf_counter() - tk, 2)
-            r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
-                          progress=not quiet, keep=keep, known=known)
-            del prepared
-            for i in range(n):
-                for j in range(i + 1, n):
-                    if items[i].label in shapes.shared and items[j].label in shapes.shared:
-                        shapes.pairs[metric, k, items[i].label, items[j].label] = (
-                            r.distance[i, j], r.relative[i, j], r.trimmed[i, j], r.results.get((i, j)))
-            timings[f"{name}.{metric}{tag}.pairs_s"] = round(r.seconds_match, 2)
-            runs.append(r)
-        ranking = {"trimmed": geometric_mean([r.trimmed for r in runs]),
-                   "gh": geometric_mean([r.relative for r in runs])}
+                if s.kind == "clean":
+                    shapes.diameters.setdefault((s.cls, s.pose), sm.diameter)
+        timings[f"{name}.{metric}.metrics_s"] = round(time.perf_counter() - t, 2)
+        r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
+                      progress=not quiet, keep=keep, known=known)
+        for i in range(len(items)):
+            for j in range(i + 1, len(items)):
+                if items[i].label in shapes.shared and items[j].label in shapes.shared:
+                    shapes.pairs[metric, items[i].label, items[j].label] = (
+                        r.distance[i, j], r.relative[i, j], r.trimmed[i, j], r.results.get((i, j)))
+        timings[f"{name}.{metric}.pairs_s"] = round(r.seconds_match, 2)
+        ranking = {"trimmed": r.trimmed, "gh": r.relative}
         rocs = {k: roc(m, labels) for k, m in ranking.items()}
         D, curve = ranking[st.rank_by], rocs[st.rank_by]
         curves[metric] = curve
         mask = perturbed[:, None] | perturbed[None, :]
-        nn = labels[np.argmin(D + np.diag(np.full(n, np.inf)), axis=1)]
+        nn = labels[np.argmin(D + np.diag(np.full(len(items), np.inf)), axis=1)]
         rec[metric] = {
             "eer": float(curve.eer),
             "ranked_by": st.rank_by,
@@ -486,21 +463,12 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
             "eer_perturbed_pairs": float(roc(D, labels, mask=mask).eer) if perturbed.any() else None,
             "nn_accuracy": float(np.mean(nn == labels)),
             "errors_at_eer": errors_at(D, labels, curve.eer_threshold),
-            "confusions": [f"{items[i].label}->{nn[i]}" for i in range(n) if nn[i] != labels[i]],
-            "relative": ranking["gh"].round(6).tolist(),
-            "trimmed": ranking["trimmed"].round(6).tolist(),
+            "confusions": [f"{items[i].label}->{nn[i]}" for i in range(len(items)) if nn[i] != labels[i]],
+            "relative": r.relative.round(6).tolist(),
+            "trimmed": r.trimmed.round(6).tolist(),
             "seconds": round(time.perf_counter() - t, 2),
         }
-        if len(runs) > 1:
-            rec[metric]["combined"] = ("geometric mean of the matrices under " +
-                                       " and ".join(_units_tag(o) for o in sets))
-            rec[metric]["by_options"] = [
-                {"units": _units_tag(o), "options": o, "eer_trimmed": float(roc(r.trimmed, labels).eer),
-                 "eer_gh": float(roc(r.relative, labels).eer), "relative": r.relative.round(6).tolist(),
-                 "trimmed": r.trimmed.round(6).tolist()} for o, r in zip(sets, runs)]
-            for (i, j), res in runs[0].results.items():
-                rmatches[metric, items[i].label, items[j].label] = res
-        for (i, j), res in runs[-1].results.items():
+        for (i, j), res in r.results.items():
             matches[metric, items[i].label, items[j].label] = res
         coords = mds_map(D, 2, seed=st.seed)
         f = f"mds_{name}_{metric}.png"
@@ -526,6 +494,31 @@ def _correspondence_pairs(items) -> list[tuple[int, int]]:
 
 def _distinct_correspondence(st: Settings, metric: str) -> bool:
     return st.correspondence_options[metric] != st.metric_options[metric]
+
+
+def _correspondence_runs(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, quiet: bool,
+                         timings: dict, matches: dict) -> None:
+    """Match the correspondence pairs of one experiment again with the correspondence's
+    metric options, for each metric whose options differ from the recognition's; pairs
+    already matched (a clean deformation is in both experiments) are not run twice."""
+    items = [shapes.entry(e) for e in entries]
+    for metric in METRICS:
+        if not _distinct_correspondence(st, metric):
+            continue
+        t = time.perf_counter()
+        pairs = [(i, j) for i, j in _correspondence_pairs(items)
+                 if (metric, items[i].label, items[j].label) not in matches]
+        used = sorted({k for ij in pairs for k in ij})
+        index = {k: n for n, k in enumerate(used)}
+        results = match_pairs([items[k].mesh for k in used], [(index[i], index[j]) for i, j in pairs],
+                              metric, n_samples=st.n_samples, seed=st.seed, resolution=None,
+                              metric_options=st.correspondence_options[metric], jobs=jobs,
+                              progress=not quiet)
+        for (i, j), res in zip(pairs, results):
+            matches[metric, items[i].label, items[j].label] = res
+        timings[f"{name}.{metric}.correspondence_s"] = round(time.perf_counter() - t, 2)
+        _say(f"  {name}/{metric}: {len(pairs)} correspondence pairs matched with "
+             f"{st.correspondence_options[metric]} ({time.perf_counter() - t:.0f} s)", quiet)
 
 
 def _correspondence(matches: dict, shapes: _Shapes, quiet: bool, metrics=METRICS, say: bool = True) -> dict:
@@ -700,10 +693,9 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         Options of the diffusion metric (:func:`gromov.metric_solver`), e.g.
         ``{"kernel": "connectivity", "m": 50, "fill_holes": None}`` for the paper's graph diffusion
         exactly (small holes are closed first unless ``"fill_holes": None``) or
-        ``{"kernel": "biharmonic"}``; default: the heat kernel, normalised heat distributions
-        at tau = 0.01 for the correspondence (d(C, C0), TOPKIDS), and for recognition the
-        geometric mean of the GH matrices under those and under raw heat distances at tau =
-        0.005; with ``units`` or ``tau`` given, one metric serves both
+        ``{"kernel": "biharmonic"}``; default: the heat kernel, raw distances at tau = 0.005
+        for recognition and normalised heat distributions at tau = 0.01 for the correspondence
+        (d(C, C0), TOPKIDS); with ``units`` or ``tau`` given, the same options serve both
         (:func:`gromov.metrics.diffusion.correspondence_options`). Recorded in ``params``
         (``metric_options``, ``correspondence_options``).
     weld_join : {"pinch", "tube"}, default "pinch"
@@ -783,22 +775,27 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     _say(f"  {len(exp1)} + {len(exp2)} shapes at {st.resolution or 'full'} resolution "
          f"({timings['shapes_s']:.0f} s)", quiet)
 
-    matches: dict = {}      # the correspondence pairs' maps (the correspondence's options)
-    rmatches: dict = {}     # the same pairs under the recognition's options, where they differ
-    recognition = {name: _recognition(name, exp, shapes, st, jobs, out, quiet, timings, matches, rmatches)
-                   for name, exp in (("weld", exp1), ("holes", exp2))}
+    matches: dict = {}      # the recognition's kept pairs
+    cmatches: dict = {}     # the correspondence pairs with the correspondence's options
+    recognition = {}
+    for name, exp in (("weld", exp1), ("holes", exp2)):
+        recognition[name] = _recognition(name, exp, shapes, st, jobs, out, quiet, timings, matches)
+        _correspondence_runs(name, exp, shapes, st, jobs, quiet, timings, cmatches)
     t = time.perf_counter()
-    correspondence = _correspondence(matches, shapes, quiet)
+    for key, res in matches.items():
+        if not _distinct_correspondence(st, key[0]):
+            cmatches[key] = res
+    correspondence = _correspondence(cmatches, shapes, quiet)
     distinct = [m for m in METRICS if _distinct_correspondence(st, m)]
-    # the recognition options' own maps too, for comparison
-    for metric, entry in _correspondence(rmatches, shapes, quiet, distinct, say=False).items():
+    # the recognition metric's own maps too, for comparison
+    for metric, entry in _correspondence(matches, shapes, quiet, distinct, say=False).items():
         correspondence[metric]["recognition_metric"] = {
             k: entry[k] for k in ("clean", "weld", "holes", "clean_direct", "weld_direct", "holes_direct")
             if k in entry}
     figures = {}
     for rec in recognition.values():
         figures.update(rec.pop("figures"))
-    figures.update(_correspondence_figures(matches, shapes, out))
+    figures.update(_correspondence_figures(cmatches, shapes, out))
     timings["correspondence_s"] = round(time.perf_counter() - t, 2)
 
     topkids = None

@@ -77,7 +77,7 @@ from ._base import MetricSolver, check_shape
 __all__ = [
     "affinity", "diffusion_operator", "cotan_laplacian", "brute_force_diffusion_distance",
     "GraphDiffusionSolver", "HeatDiffusionSolver", "BiharmonicSolver", "DIFFUSION_KERNELS", "HEAT_UNITS",
-    "DEFAULT_TAU", "DEFAULT_UNITS", "CORRESPONDENCE_UNITS", "correspondence_options", "recognition_options",
+    "DEFAULT_TAU", "DEFAULT_UNITS", "CORRESPONDENCE_UNITS", "correspondence_options",
 ]
 
 logger = logging.getLogger(__name__)
@@ -124,32 +124,6 @@ def correspondence_options(metric: str, options: dict | None) -> dict:
             and "units" not in options and "tau" not in options):
         options["units"] = CORRESPONDENCE_UNITS
     return options
-
-
-def recognition_options(metric: str, options: dict | None) -> list[dict]:
-    """The option sets recognition computes a GH matrix under, given the caller's ``options``.
-
-    ``[options]``, and where a correspondence would use other options
-    (:func:`correspondence_options`: the heat kernel with neither ``units`` nor ``tau``) those
-    too: ``[options, options + units="normalized"]``. Recognition then ranks pairs by the
-    elementwise geometric mean of the matrices (:func:`gromov.experiments.pairwise.geometric_mean`;
-    ``gromov reproduce``, ``gromov pairwise``). Chosen on the validation sets (session 15): the
-    raw heat distances see thickness and local size (return probabilities) and are moved by
-    welds, the normalised ones see neither; together they separated the classes better than
-    either alone -- smallest different-class over largest same-class trimmed distortion, welds /
-    holes: held-out TOSCA classes 1.01 / 1.46 (raw) and 0.83 / 1.09 (normalised) -> 1.35 /
-    1.78, synthetic set 0.99 / 3.78 and 0.65 / 6.41 -> 1.13 / 5.26 (README, "Session 15").
-
-    Examples
-    --------
-    >>> recognition_options("diffusion", {"fill_holes": 0.5})
-    [{'fill_holes': 0.5}, {'fill_holes': 0.5, 'units': 'normalized'}]
-    >>> recognition_options("diffusion", {"units": "raw"})
-    [{'units': 'raw'}]
-    """
-    options = dict(options or {})
-    corr = correspondence_options(metric, options)
-    return [options] if corr == options else [options, corr]
 
 
 # ----------------------------------------------------------------------------- operators
