@@ -806,7 +806,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         For a correspondence, the heat-kernel diffusion metric defaults to normalised heat
         distributions (``units="normalized"``, tau 0.01) unless ``units`` or ``tau`` is given
         (:func:`gromov.metrics.diffusion.correspondence_options`); GH distance matrices
-        (:func:`gromov.experiments.pairwise.gh_matrix`, ``gromov distances``) keep the raw
+        (:func:`gromov.experiments.pairwise.gh_matrix`, ``gromov pairwise``) keep the raw
         heat distances, which separate classes better (README, "Choices worth knowing").
     max_iter, tol : GMDS sweeps and relative stopping tolerance.
     radius : float, optional

@@ -88,7 +88,7 @@ HEAT_UNITS = ("normalized", "raw", "length")
 #: :class:`HeatDiffusionSolver`).
 DEFAULT_TAU = {"normalized": 0.01, "raw": 0.005, "length": 0.005}
 #: Default ``units`` of :class:`HeatDiffusionSolver`, and of recognition (GH distance
-#: matrices: :func:`gromov.experiments.pairwise.gh_matrix`, ``gromov distances``,
+#: matrices: :func:`gromov.experiments.pairwise.gh_matrix`, ``gromov pairwise``,
 #: ``gromov reproduce``'s EERs).
 DEFAULT_UNITS = "raw"
 #: ``units`` of the heat kernel when the task is a *correspondence* (:func:`gromov.match`,
