@@ -3,8 +3,10 @@
 Run:  .venv/bin/python benchmarks/bench_topkids.py [--data DIR] [--json OUT]
 
 SHREC'16 "Topological KIDS": kid01-kid25 matched to kid00 (``gromov reproduce``'s section 6:
-each kid simplified on its own to 3,000 vertices, 100 samples, the library's default metrics
--- fast-marching geodesic, heat-kernel diffusion with small holes closed). For each match:
+each kid simplified on its own to 3,000 vertices, 100 samples, the metrics a correspondence
+gets by default -- fast-marching geodesic, heat-kernel diffusion with small holes closed, since
+session 15 between normalised heat distributions (``correspondence_options``; ``--units raw``:
+the raw heat distance, as before)). For each match:
 
 - d(C, C0) of the kid -> kid00 map (mean geodesic error on kid00 ÷ its geodesic diameter,
   the left/right mirrored ground truth counted as correct), as in ``gromov reproduce``;
@@ -33,6 +35,7 @@ from gromov.experiments import datasets
 from gromov.experiments.reproduce import _geodesic_errors
 from gromov.gh import ShapeMetric, match
 from gromov.metrics import metric_solver
+from gromov.metrics.diffusion import correspondence_options
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))  # the sibling benchmark's helpers
@@ -62,6 +65,8 @@ def main(argv=None):
     ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
     ap.add_argument("--samples", type=int, default=100)
     ap.add_argument("--metrics", default=",".join(METRICS))
+    ap.add_argument("--units", choices=("normalized", "raw", "length"), default=None,
+                    help="heat-kernel units of the diffusion metric (default: the correspondence's)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     metrics = args.metrics.split(",")
@@ -78,14 +83,16 @@ def main(argv=None):
     def near0(ids):  # file ids of kid00 -> nearest working vertex
         return w0.from_source(m0.from_input_ids(ids))
 
-    refs = {m: ShapeMetric(m0, m, working=w0) for m in metrics}
+    opts = {m: correspondence_options(m, {"units": args.units} if m == "diffusion" and args.units else None)
+            for m in metrics}
+    refs = {m: ShapeMetric(m0, m, working=w0, metric_options=opts[m]) for m in metrics}
     rows = []
     for name in names:
         mesh = kids.load(name)
         work = simplify(mesh, 3000)
         handles = (2 - mesh.euler_characteristic) / 2
         for metric in metrics:
-            sx = ShapeMetric(mesh, metric, working=work)
+            sx = ShapeMetric(mesh, metric, working=work, metric_options=opts[metric])
             r = match(sx, refs[metric], metric, n_samples=args.samples)
             gt = kids.ground_truth(name)[r.x_samples]
             gm = np.where(sym0[gt] < 0, gt, sym0[gt])
@@ -135,6 +142,7 @@ def main(argv=None):
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "samples": args.samples,
+                                               "metric_options": opts,
                                                "summary": summary, "rows": rows}, indent=1))
 
 
