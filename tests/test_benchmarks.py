@@ -113,3 +113,12 @@ def test_weld_contact_pinch_merges_and_keeps_input_ids():
     assert np.count_nonzero(w.faces == iu) == np.count_nonzero(m.faces == u) + np.count_nonzero(m.faces == v)
     # one vertex fewer, same edges and faces: the Euler characteristic drops by one
     assert w.euler_characteristic == m.euler_characteristic - 1
+
+
+def test_close_humanoids_margin():
+    """The margin is the smallest different-class distance over the largest same-class one."""
+    ch = _module("bench_close_humanoids")
+    D, lab = _by_class(["a", "a", "b", "b"], 1.0, 3.0)
+    assert ch.margin(D, lab) == 3.0
+    D[0, 2] = D[2, 0] = 0.5     # one pair closer than the classes' own: below 1
+    assert ch.margin(D, lab) == 0.5

@@ -229,3 +229,21 @@ def test_unknown_class_or_pose(data):
         with pytest.raises(KeyError, match="no pose .* of synthetic class 'cat'; poses: 0, 1"):
             data.load("cat", pose)
     assert data.load("cat", np.int64(2)) is data.load("cat", 2)
+
+
+def test_victoria_blend_moves_her_body_towards_his(data, shapes):
+    """victoria_blend in (0, 1]: 1 is the default woman; between, her size lies between the
+    man's and hers, and she is still a posed oriented sphere with the same numbering."""
+    half = Synthetic(n_vertices=N, victoria_blend=0.5)
+    np.testing.assert_array_equal(Synthetic(n_vertices=N, victoria_blend=1.0).load("victoria", 2).vertices,
+                                  shapes["victoria", 2].vertices)
+    np.testing.assert_array_equal(half.load("david", 2).vertices, shapes["david", 2].vertices)
+    v0, v3 = half.load("victoria", 0), half.load("victoria", 3)
+    assert not v0.boundary_loops and v0.genus == 0 and v0.is_edge_manifold and np.array_equal(v0.faces, v3.faces)
+    area = lambda m: m.area  # noqa: E731
+    lo, hi = sorted((area(shapes["david", 0]), area(shapes["victoria", 0])))
+    assert lo < area(v0) < hi
+    assert "victoria_blend=0.5" in repr(half)
+    for bad in (0, -0.5, 1.5, True, "1"):
+        with pytest.raises(ValueError, match="victoria_blend must be a number in"):
+            Synthetic(victoria_blend=bad)

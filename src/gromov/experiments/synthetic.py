@@ -279,27 +279,34 @@ def _quadruped(cls: str) -> _Body:
     return _Body(segs, bones)
 
 
-def _humanoid(cls: str) -> _Body:
+# body parameters of the two people: scale, (shoulder_y, chest_y, chest_r, waist_r, hip_y,
+# hip_r), (head_r, neck_r), arm radii (shoulder, elbow, wrist, finger tips), leg radii (hip,
+# knee, ankle, toes), bust radius (0: none)
+_MAN = (1.0, (0.19, 0.065, 0.115, 0.100, 0.085, 0.115), (0.095, 0.050),
+        (0.048, 0.040, 0.031, 0.029), (0.085, 0.053, 0.036, 0.030), 0.0)
+_WOMAN = (0.95, (0.155, 0.055, 0.100, 0.085, 0.100, 0.128), (0.088, 0.042),
+          (0.041, 0.034, 0.026, 0.025), (0.088, 0.051, 0.032, 0.027), 0.058)
+
+
+def _blend_params(a, b, w: float):
+    """``a + w (b - a)`` through nested tuples; ``b`` itself when ``w == 1``."""
+    if w == 1.0:
+        return b
+    if isinstance(a, tuple):
+        return tuple(_blend_params(x, y, w) for x, y in zip(a, b))
+    return a + w * (b - a)
+
+
+def _humanoid(cls: str, blend: float = 1.0) -> _Body:
     """Man (david) or woman (victoria), metres, A-pose, facing +x, on z = 0, left side at +y.
 
     Bones: ``pelvis`` (the root), ``spine`` (torso and shoulders, turning about the
     waist), ``neck``, ``head``, and per side ``upperarm``, ``forearm``, ``hand``, ``thigh``,
-    ``shin``, ``foot`` with suffix ``_l`` or ``_r``.
+    ``shin``, ``foot`` with suffix ``_l`` or ``_r``. ``blend`` (victoria only): her body
+    parameters taken the fraction ``blend`` of the way from the man's to hers (1: hers).
     """
-    if cls == "david":
-        s = 1.0                                       # overall scale
-        shoulder_y, chest_y, chest_r, waist_r, hip_y, hip_r = 0.19, 0.065, 0.115, 0.100, 0.085, 0.115
-        head_r, neck_r = 0.095, 0.050
-        arm_r = (0.048, 0.040, 0.031, 0.029)          # shoulder, elbow, wrist, finger tips
-        leg_r = (0.085, 0.053, 0.036, 0.030)          # hip, knee, ankle, toes
-        bust = None
-    else:
-        s = 0.95
-        shoulder_y, chest_y, chest_r, waist_r, hip_y, hip_r = 0.155, 0.055, 0.100, 0.085, 0.100, 0.128
-        head_r, neck_r = 0.088, 0.042
-        arm_r = (0.041, 0.034, 0.026, 0.025)
-        leg_r = (0.088, 0.051, 0.032, 0.027)
-        bust = 0.058
+    params = _MAN if cls == "david" else _blend_params(_MAN, _WOMAN, float(blend))
+    s, (shoulder_y, chest_y, chest_r, waist_r, hip_y, hip_r), (head_r, neck_r), arm_r, leg_r, bust = params
 
     def S(p):
         return (s * p[0], s * p[1], s * p[2])
@@ -348,8 +355,8 @@ def _humanoid(cls: str) -> _Body:
 
 
 @lru_cache(maxsize=None)
-def _body(cls: str) -> _Body:
-    return _quadruped(cls) if cls in ("cat", "dog") else _humanoid(cls)
+def _body(cls: str, blend: float = 1.0) -> _Body:
+    return _quadruped(cls) if cls in ("cat", "dog") else _humanoid(cls, blend)
 
 
 # ---------------------------------------------------------------------------- implicit surface
@@ -655,9 +662,9 @@ def _smoothstep(x: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _rest(cls: str, n_vertices: int) -> _Rest:
+def _rest(cls: str, n_vertices: int, blend: float = 1.0) -> _Rest:
     """Rest mesh of ``cls`` with about ``n_vertices`` vertices (cached per process)."""
-    body = _body(cls)
+    body = _body(cls, blend)
     # grid spacing for about _OVERSAMPLE * n_vertices vertices (marching-tetrahedra vertices
     # grow as 1 / h^2: one coarse trial run calibrates), fine enough for the thinnest part
     span = np.ptp(np.concatenate([[s.a, s.b] for s in body.segments]), axis=0)
@@ -841,7 +848,8 @@ def _close(body: _Body, rest: _Rest, rot: dict, bone: str, axis: np.ndarray, lim
     return best
 
 
-def _solve_pose(cls: str, rest: _Rest, ops: list, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+def _solve_pose(cls: str, rest: _Rest, ops: list, rng: np.random.Generator,
+                blend: float = 1.0) -> tuple[np.ndarray, dict]:
     """Vertices of a pose and the rotations used (``bone -> (axis, angle)``).
 
     ``ops`` are applied in order. ``("rot", bone, axis, degrees)`` turns ``bone`` by a set
@@ -850,9 +858,10 @@ def _solve_pose(cls: str, rest: _Rest, ops: list, rng: np.random.Generator) -> t
     part :data:`CONTACT_GAP` mean edges from the parts it was far from at rest (see
     :func:`_close`): about ``axis``, or about the axis that swings the first point (on the
     moving part; ``t`` along the bone) towards the second, at most until it points at the
-    second. ``rng`` jitters every ``degrees`` by up to :data:`JITTER_DEGREES`.
+    second. ``rng`` jitters every ``degrees`` by up to :data:`JITTER_DEGREES`. ``blend``:
+    victoria's body (:func:`_humanoid`).
     """
-    body = _body(cls)
+    body = _body(cls, blend)
     gap = CONTACT_GAP * rest.mesh.mean_edge_length
     rot: dict = {}
     for op in ops:
@@ -993,13 +1002,19 @@ class Synthetic:
     seed : int, default 0
         Non-negative; jitters the joint angles of poses 1-6 (by up to
         :data:`JITTER_DEGREES`). The rest pose does not depend on it.
+    victoria_blend : float, default 1
+        In ``(0, 1]``: victoria's body parameters (scale, shoulder and hip widths, limb,
+        torso, head and bust radii) the fraction ``victoria_blend`` of the way from david's to
+        hers -- a harder pair for recognition than the default (1: the woman as described
+        above). Her poses are the same.
 
     Raises
     ------
     TypeError
         ``n_vertices`` or ``seed`` is not an integer.
     ValueError
-        ``n_vertices`` is out of range or ``seed`` is negative.
+        ``n_vertices`` is out of range, ``seed`` is negative or ``victoria_blend`` is not in
+        ``(0, 1]``.
 
     Examples
     --------
@@ -1011,14 +1026,22 @@ class Synthetic:
     (True, 0.0)
     """
 
-    def __init__(self, n_vertices: int = 1500, seed: int = 0):
+    def __init__(self, n_vertices: int = 1500, seed: int = 0, victoria_blend: float = 1.0):
         self.n_vertices = _check_int(n_vertices, "n_vertices", MIN_VERTICES, MAX_VERTICES)
         self.seed = _check_int(seed, "seed", 0)
+        if isinstance(victoria_blend, (bool, np.bool_)) or not isinstance(victoria_blend, numbers.Real) \
+                or not 0.0 < victoria_blend <= 1.0:
+            raise ValueError(f"victoria_blend must be a number in (0, 1], got {victoria_blend!r}")
+        self.victoria_blend = float(victoria_blend)
         self._poses: dict[tuple[str, int], Mesh] = {}
 
     def __repr__(self) -> str:
-        return (f"Synthetic(n_vertices={self.n_vertices}, seed={self.seed}: "
+        blend = "" if self.victoria_blend == 1.0 else f", victoria_blend={self.victoria_blend:g}"
+        return (f"Synthetic(n_vertices={self.n_vertices}, seed={self.seed}{blend}: "
                 f"{len(CLASSES)} classes, {len(self.shapes())} shapes)")
+
+    def _blend(self, cls: str) -> float:
+        return self.victoria_blend if cls == "victoria" else 1.0
 
     @property
     def classes(self) -> list[str]:
@@ -1064,12 +1087,12 @@ class Synthetic:
         pose = self._pose(cls, pose)
         key = (cls, pose)
         if key not in self._poses:
-            rest = _rest(cls, self.n_vertices)
+            rest = _rest(cls, self.n_vertices, self._blend(cls))
             if pose == 0:
                 self._poses[key] = rest.mesh
             else:
                 rng = np.random.default_rng([self.seed, CLASSES.index(cls), pose])
-                V, _ = _solve_pose(cls, rest, list(_pose_table(cls)[pose - 1][1]), rng)
+                V, _ = _solve_pose(cls, rest, list(_pose_table(cls)[pose - 1][1]), rng, self._blend(cls))
                 self._poses[key] = rest.mesh.with_vertices(V)
         return self._poses[key]
 
@@ -1088,7 +1111,7 @@ class Synthetic:
         at the mesh's resolution.
         """
         mesh = self.load(cls, pose)
-        rest = _rest(cls, self.n_vertices)
+        rest = _rest(cls, self.n_vertices, self._blend(cls))
         e = rest.mesh.mean_edge_length
         far = _FAR * CONTACT_GAP * e
         return _clearance(rest.mesh.vertices, mesh.vertices, far, far) / e
