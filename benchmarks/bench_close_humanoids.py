@@ -48,10 +48,15 @@ def main(argv=None):
     ap.add_argument("--deformations", type=int, default=4)
     ap.add_argument("--samples", type=int, default=50)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--raw-tau", type=float, default=None,
+                    help="diffusion time of the raw heat distance (default the library's, 0.005)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
+    options = {k: dict(v) for k, v in OPTIONS.items()}
+    if args.raw_tau is not None:
+        options["raw"]["tau"] = args.raw_tau
     out = {"date": time.strftime("%Y-%m-%d"), "samples": args.samples, "deformations": args.deformations,
-           "blends": {}}
+           "options": options, "blends": {}}
     t0 = time.perf_counter()
     for blend in (float(b) for b in args.blends.split(",")):
         coll = Synthetic(victoria_blend=blend)
@@ -60,7 +65,7 @@ def main(argv=None):
         items = [shapes.entry(e) for e in entries]
         labels = np.array([s.cls for s in items])
         mats = {}
-        for name, opts in OPTIONS.items():
+        for name, opts in options.items():
             r = gh_matrix([s.mesh for s in items], "diffusion", n_samples=args.samples, resolution=None,
                           metric_options=opts, jobs=args.jobs)
             mats[name] = {"trimmed": r.trimmed, "gh": r.relative}
