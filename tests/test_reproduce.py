@@ -138,6 +138,25 @@ def test_cached_rows_are_the_solvers_rows():
     assert calls == [3, 1] and rows.from_sources([]).shape == (0, solver.n_vertices)
 
 
+def test_a_match_measures_both_sides_in_the_same_metric():
+    """Without metric_options, the shape not prepared yet takes the prepared one's options
+    (a raw ShapeMetric against a mesh: raw on both sides); with none prepared, the
+    correspondence's defaults."""
+    from gromov.gh import ShapeMetric, match, match_options_for
+    from gromov.shapes import icosphere, rolled_grid
+
+    x, y = grid(21, 11), rolled_grid(21, 11)
+    for opts in ({}, {"units": "normalized"}):
+        sx = ShapeMetric(x, "diffusion", resolution=None, metric_options=opts)
+        assert match_options_for((sx, y), "diffusion", None) == opts
+        a = match(sx, y, "diffusion", n_samples=20, resolution=None)
+        b = match(sx, ShapeMetric(y, "diffusion", resolution=None, metric_options=opts), "diffusion",
+                  n_samples=20, resolution=None)
+        assert a.distance == b.distance
+    assert match_options_for((x, icosphere(1)), "diffusion", None) == {"units": "normalized"}
+    assert match_options_for((sx, y), "diffusion", {"units": "raw"}) == {"units": "raw"}
+
+
 def test_reflection_map_of_a_symmetric_sheet():
     g = grid(9, 5)   # symmetric about the middle of its x range
     m = reflection_map(g)

@@ -724,6 +724,21 @@ def pairs_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np
 
 
 # ----------------------------------------------------------------------------- match
+def match_options_for(shapes, metric: str, metric_options: dict | None) -> dict:
+    """Metric options for the shapes of a correspondence that are not prepared yet.
+
+    Given ``metric_options``: :func:`~gromov.metrics.diffusion.correspondence_options` of
+    them. Not given: those of the first prepared :class:`ShapeMetric` among ``shapes`` (so
+    that both sides of a match measure in the same metric), else the correspondence's
+    defaults (normalised heat distributions for the heat kernel).
+    """
+    if metric_options is None:
+        for s in shapes:
+            if isinstance(s, ShapeMetric) and s.metric == metric:
+                return dict(s.metric_options)
+    return correspondence_options(metric, metric_options)
+
+
 def _as_shape(s, metric, resolution, metric_options, name: str) -> ShapeMetric:
     if isinstance(s, ShapeMetric):
         if s.metric != metric:
@@ -802,9 +817,11 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     resolution : int or None, default 3000
         Working mesh size when X or Y are not prepared already.
     metric_options : dict, optional
-        Options of the metric (:func:`gromov.metric_solver`) for shapes not prepared yet.
-        For a correspondence, the heat-kernel diffusion metric defaults to normalised heat
-        distributions (``units="normalized"``, tau 0.01) unless ``units`` or ``tau`` is given
+        Options of the metric (:func:`gromov.metric_solver`) for shapes not prepared yet;
+        not given, those of the other shape when it is a prepared :class:`ShapeMetric`
+        (:func:`match_options_for`). For a correspondence, the heat-kernel diffusion metric
+        defaults to normalised heat distributions (``units="normalized"``, tau 0.01) unless
+        ``units`` or ``tau`` is given
         (:func:`gromov.metrics.diffusion.correspondence_options`); GH distance matrices
         (:func:`gromov.experiments.pairwise.gh_matrix`, ``gromov pairwise``) keep the raw
         heat distances, which separate classes better (README, "Choices worth knowing").
@@ -895,7 +912,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
                          f"{coarse_stages!r}") from None
     if not coarse_stages or any(c < 1 or (k is not None and k < 1) for c, k in coarse_stages):
         raise ValueError(f"coarse_stages must be non-empty pairs of positive sizes, got {coarse_stages!r}")
-    metric_options = correspondence_options(metric, metric_options)
+    metric_options = match_options_for((X, Y), metric, metric_options)
     sx = _as_shape(X, metric, resolution, metric_options, "X")
     sy = _as_shape(Y, metric, resolution, metric_options, "Y")
     for name, s in (("X", sx), ("Y", sy)):

@@ -16,8 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gh import DEFAULT_COARSE_STAGES, ShapeMetric, match, search_subsets
-from ..metrics.diffusion import correspondence_options
+from ..gh import DEFAULT_COARSE_STAGES, ShapeMetric, match, match_options_for, search_subsets
 
 __all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
@@ -182,14 +181,15 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 
     Each shape is prepared once (as in :func:`gh_matrix`); pairs run in ``jobs`` forked
     worker processes. Returns the :class:`gromov.MatchResult` of each pair, in order. As in
-    :func:`gromov.match`, shapes not prepared yet get the correspondence's metric options
-    (:func:`gromov.metrics.diffusion.correspondence_options`).
+    :func:`gromov.match`, shapes not prepared yet get the correspondence's metric options, or
+    without ``metric_options`` those of the prepared ones (:func:`gromov.gh.match_options_for`).
     """
+    shapes = list(shapes)
     pairs = [(int(i), int(j)) for i, j in pairs]
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
-                       metric_options=correspondence_options(metric, metric_options), progress=progress,
+                       metric_options=match_options_for(shapes, metric, metric_options), progress=progress,
                        subsets=_subsets(match_options))
     n = len(prepared)
     bad = [ij for ij in pairs if not (0 <= ij[0] < n and 0 <= ij[1] < n)]
