@@ -247,3 +247,28 @@ def test_victoria_blend_moves_her_body_towards_his(data, shapes):
     for bad in (0, -0.5, 1.5, True, "1"):
         with pytest.raises(ValueError, match="victoria_blend must be a number in"):
             Synthetic(victoria_blend=bad)
+
+
+def test_pose_stretch_makes_poses_non_isometric(data, shapes):
+    """pose_stretch = 0 is the default set; > 0 stretches poses 1-6 (same joint angles, same
+    numbering and faces, still oriented spheres) so that geodesic distances change by a few
+    percent, as between TOSCA's poses, while the rest pose stays as it was."""
+    stretched = Synthetic(n_vertices=N, pose_stretch=0.1)
+    np.testing.assert_array_equal(Synthetic(n_vertices=N, pose_stretch=0.0).load("david", 2).vertices,
+                                  shapes["david", 2].vertices)
+    np.testing.assert_array_equal(stretched.load("david", 0).vertices, shapes["david", 0].vertices)
+    sources = np.linspace(0, shapes["david", 0].n_vertices - 1, 16).astype(int)
+    d0 = gromov.metric_solver(shapes["david", 0], "geodesic").from_sources(sources)
+    far = d0 > 0.05 * d0.max()
+    change = lambda m: float(np.median(np.abs(  # noqa: E731
+        gromov.metric_solver(m, "geodesic").from_sources(sources)[far] - d0[far]) / d0[far]))
+    plain, bent = change(shapes["david", 1]), change(stretched.load("david", 1))
+    assert plain < 0.01 and 0.02 < bent < 0.1, (plain, bent)
+    m = stretched.load("david", 1)
+    assert not m.boundary_loops and m.genus == 0 and m.is_edge_manifold
+    assert np.array_equal(m.faces, shapes["david", 1].faces)
+    assert stretched.clearance("david", 1) > 1.0          # parts still do not touch
+    assert "pose_stretch=0.1" in repr(stretched)
+    for bad in (-0.1, 0.5, True, "0.1"):
+        with pytest.raises(ValueError, match="pose_stretch must be a number in"):
+            Synthetic(pose_stretch=bad)

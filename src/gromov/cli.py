@@ -105,6 +105,26 @@ def _diffusion_options(args) -> dict:
     return opts
 
 
+def _rank_tau_scale(text: str) -> float | None:
+    """``--rank-tau-scale``: a positive number; 1 is the metric of the match itself (None)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (v > 0 and np.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return None if v == 1.0 else v
+
+
+def _add_rank_tau_arg(p: argparse.ArgumentParser) -> None:
+    from .gh import RANK_TAU_SCALE
+
+    p.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
+                   help=f"heat-kernel diffusion: the trimmed ranking measures each correspondence "
+                        f"with the heat distance at S times the diffusion time it was found at "
+                        f"(default {RANK_TAU_SCALE:g}: a finer scale; 1: the same metric)")
+
+
 def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
     """``--tau``, ``--units`` and ``--fill-holes`` (the diffusion metric's), for ``match``,
     ``distances`` and ``reproduce``; ``units_default``: the help's words for the default."""
@@ -407,7 +427,7 @@ def cmd_pairwise(args) -> int:
     t = time.perf_counter()
     r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
                   metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
-                  progress=not (args.quiet or args.json))
+                  progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale)
     seconds = time.perf_counter() - t
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
@@ -415,7 +435,7 @@ def cmd_pairwise(args) -> int:
     names = list(args.files)
     result = {"files": names, "metric": args.metric, "metric_options": options,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
-              "ranked_by": args.rank_by,
+              "ranked_by": args.rank_by, "rank_tau_scale": r.rank_tau_scale,
               "distance": r.distance.tolist(), "relative_distance": r.relative.tolist(),
               "relative_trimmed_distance": r.trimmed.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
@@ -443,6 +463,7 @@ def cmd_pairwise(args) -> int:
                                 ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
                                 eer=nan if result.get("eer") is None else result["eer"],
                                 metric=args.metric, options=json.dumps(options),
+                                rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
                                 n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
         from .experiments.recognition import plot_mds
@@ -599,7 +620,8 @@ def cmd_reproduce(args) -> int:
     diffusion = _diffusion_options(args)
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
                   command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
-                  classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by)
+                  classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by,
+                  rank_tau_scale=args.rank_tau_scale)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -617,6 +639,9 @@ def cmd_reproduce(args) -> int:
     if other:
         print(f"  classes {', '.join(other)}: the paper's numbers are for {', '.join(PAPER_CLASSES)}")
     rank = "the trimmed distortion" if r["params"].get("rank_by") == "trimmed" else "the GH estimate"
+    scale = r["params"].get("rank_tau_scale")
+    if r["params"].get("rank_by") == "trimmed" and scale is not None:
+        rank += f" (diffusion: measured at {scale:g} x the diffusion time, --rank-tau-scale)"
     print(f"  EERs rank pairs by {rank} (--rank-by); the other's EER in brackets")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
@@ -708,6 +733,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
                    help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
                         "correspondence (default, as gromov reproduce) or by the GH estimate")
+    _add_rank_tau_arg(q)
     q.add_argument("--out", default=None, metavar="FILE",
                    help=".npz with all matrices, or .csv with the matrix the results rank by "
                         "(named in its first cell)")
@@ -756,6 +782,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="recognition ranks pairs by the trimmed distortion of their GH correspondence "
                         "(RMS of its best-fitting 80%% of pairs; default) or by the GH estimate; "
                         "results.json has both EERs")
+    _add_rank_tau_arg(q)
     q.set_defaults(func=cmd_reproduce)
 
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")

@@ -10,6 +10,7 @@ correspondence off it, so both are judged by the same distortion.
 from __future__ import annotations
 
 import logging
+import numbers
 import os
 import time
 import warnings
@@ -20,7 +21,7 @@ import numpy as np
 from . import _gmds_kernel as _kernel
 from ._project import project_points
 from .errors import GromovWarning
-from .gmds import SurfaceDistance, SurfacePoints, SymmetricGMDS, norm_value, parse_norm, trimmed_rms
+from .gmds import EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, norm_value, parse_norm, trimmed_rms
 from .mesh import Mesh, as_mesh
 from .metrics import metric_solver
 from .metrics.diffusion import correspondence_options
@@ -72,6 +73,14 @@ INVOLUTION_TOL = 0.05
 #: start from.
 SIGNATURE_WEIGHT = 1.0
 SIGNATURE_STARTS = 32
+#: Recognition (:func:`gromov.experiments.gh_matrix`) ranks a pair of shapes by the trimmed
+#: distortion of the correspondence found with the heat-kernel diffusion metric at time
+#: ``tau``, *measured* with the heat distance at ``RANK_TAU_SCALE * tau`` (a finer scale) on
+#: the same eigenpairs (:meth:`HeatDiffusionSolver.at_tau
+#: <gromov.metrics.diffusion.HeatDiffusionSolver.at_tau>`); see ``match``'s
+#: ``rank_tau_scale``. Chosen in session 16 on validation sets (README, "Recognition at a
+#: finer scale").
+RANK_TAU_SCALE = 0.5
 
 
 class ShapeMetric:
@@ -115,6 +124,7 @@ class ShapeMetric:
         self._tree = None
         self._normals: tuple[np.ndarray, bool] | None = None
         self._symmetry: dict = {}
+        self._ranking: dict = {}
 
     @property
     def mesh(self) -> Mesh:
@@ -190,6 +200,28 @@ class ShapeMetric:
             self._symmetry[key] = _self_reflection(self, *key)
         return self._symmetry[key]
 
+    def ranking_surface(self, tau_scale: float):
+        """``(EmbeddedDistance, diameter)`` of the heat distance at ``tau_scale`` times this
+        shape's diffusion time, from the same eigenpairs (cached per scale), or None when the
+        metric is not the heat-kernel diffusion distance. What ``match(..., rank_tau_scale=)``
+        measures a correspondence with."""
+        at_tau = getattr(self.solver, "at_tau", None)
+        if at_tau is None:
+            return None
+        key = float(tau_scale)
+        if key not in self._ranking:
+            inner = getattr(self.solver, "inner", self.solver)
+            scaled = at_tau(inner.tau * key)
+            psi = scaled.embedding
+            sq = (psi**2).sum(1)
+            # the diameter: the largest distance, in row blocks (no (n, n) matrix kept)
+            top = 0.0
+            for i in range(0, len(psi), 1024):
+                d2 = sq[i:i + 1024, None] + sq[None, :] - 2.0 * (psi[i:i + 1024] @ psi.T)
+                top = max(top, float(d2.max()))
+            self._ranking[key] = (EmbeddedDistance(self.mesh, psi), float(np.sqrt(max(top, 0.0))))
+        return self._ranking[key]
+
     def samples(self, n: int, seed: int = 0) -> np.ndarray:
         """``n`` farthest point samples (working vertex ids), cached per ``(n, seed)``."""
         key = (int(n), int(seed))
@@ -249,8 +281,12 @@ class MatchResult:
         (:func:`gromov.gmds.trimmed_rms`, ``TRIM_KEEP``): the distortion left when the pairs a
         local topology change altered are set aside. Not the GH estimate.
     relative_trimmed : float
-        Half of it divided by the larger diameter, comparable to ``relative_distance``; what
-        ``gromov reproduce`` ranks pairs of shapes by (``PairwiseGH.trimmed``).
+        Half of it divided by the larger diameter, comparable to ``relative_distance``.
+    ranking_distance : float
+        What recognition ranks pairs of shapes by (``PairwiseGH.trimmed``, ``gromov
+        reproduce``): ``relative_trimmed``, or with ``rank_tau_scale`` and the heat-kernel
+        diffusion metric, the same quantity for the same correspondence measured with the heat
+        distance at ``rank_tau_scale`` times the diffusion time (diameters in that metric).
     pair_distortion : ndarray (M+K, M+K)
         ``D_X(C) - D_Y(C)`` of the final two-sided correspondence C = (P x Q') u (P' x Q): rows
         and columns are first X's M samples (on Y: their images), then Y's K samples (on X:
@@ -282,6 +318,7 @@ class MatchResult:
     orientation: float = float("nan")
     distortion_trimmed: float = float("nan")
     relative_trimmed: float = float("nan")
+    ranking_distance: float = float("nan")
     pair_distortion: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     history: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
@@ -756,7 +793,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
           resolution: int | None = DEFAULT_RESOLUTION,
           metric_options: dict | None = None, max_iter: int = 100, tol: float = 1e-6,
           radius: float | None = None, orientation: str = "prefer",
-          extend_keep: float = EXTEND_KEEP, signature_weight: float = SIGNATURE_WEIGHT) -> MatchResult:
+          extend_keep: float = EXTEND_KEEP, signature_weight: float = SIGNATURE_WEIGHT,
+          rank_tau_scale: float | None = None) -> MatchResult:
     r"""Gromov-Hausdorff distance and correspondence between two shapes.
 
     Parameters
@@ -881,6 +919,14 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         ``benchmarks/results/heldout-s13.json``): diffusion d(C, C0) clean / welds / 10 / 20
         holes 0.025 / 0.035 / 0.018 / 0.027 -> 0.021 / 0.023 / 0.011 / 0.020, geodesic welds
         0.066 -> 0.059 (rest unchanged); weights 0.25 / 0.5 / 2 were mixed (README).
+    rank_tau_scale : float, optional
+        With the heat-kernel diffusion metric: ``ranking_distance`` is the final
+        correspondence's trimmed distortion measured with the heat distance at this times the
+        diffusion time (:meth:`ShapeMetric.ranking_surface`); the search, the correspondence
+        and every other field are unchanged. Recognition (:func:`gromov.experiments.gh_matrix`)
+        passes :data:`RANK_TAU_SCALE` (0.5): the correspondence is found at the coarser scale,
+        where the search is robust, and measured at the finer one, where two similar classes
+        differ more. None: ``ranking_distance = relative_trimmed``.
 
     Returns
     -------
@@ -897,6 +943,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"orientation must be 'ignore' or 'prefer', got {orientation!r}")
     if not 0.0 < extend_keep <= 1.0:
         raise ValueError(f"extend_keep must be in (0, 1], got {extend_keep!r}")
+    if rank_tau_scale is not None and not (isinstance(rank_tau_scale, numbers.Real)
+                                           and 0.0 < rank_tau_scale < np.inf):
+        raise ValueError(f"rank_tau_scale must be a positive number or None, got {rank_tau_scale!r}")
     if not (np.isfinite(signature_weight) and signature_weight >= 0):
         raise ValueError(f"signature_weight must be a finite number >= 0, got {signature_weight!r}")
     checked = [("n_starts", n_starts), ("n_extend", n_extend)]
@@ -1004,6 +1053,13 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     dis = norm_value(r, p)
     d_l2, d_linf, d_trim = norm_value(r, 2.0), norm_value(r, np.inf), trimmed_rms(r)
     diam = max(sx.diameter, sy.diameter)
+    ranking = 0.5 * d_trim / diam
+    if rank_tau_scale is not None:
+        mx, my = sx.ranking_surface(rank_tau_scale), sy.ranking_surface(rank_tau_scale)
+        if mx is not None and my is not None:
+            ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(img_p, img_q)
+            rr = (ex - ey)[~np.eye(len(ex), dtype=bool)]
+            ranking = 0.5 * trimmed_rms(rr) / max(mx[1], my[1])
     xy_face, xy_bary, xy_vertex = sy.locate(img_p)
     yx_face, yx_bary, yx_vertex = sx.locate(img_q)
     return MatchResult(
@@ -1016,5 +1072,6 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         y_to_x_vertex=yx_vertex,
         n_iter=int(n_iter), converged=bool(converged), seconds=time.perf_counter() - t0,
         orientation=orient, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
+        ranking_distance=ranking,
         pair_distortion=residual,
         history=np.asarray(history))

@@ -204,6 +204,52 @@ class SurfaceDistance:
         """Interpolated distances ``(k, k + l)`` from points to [points, fixed vertices]."""
         return pair_distances(pts.face, pts.bary, np.asarray(fixed, np.int64), self.sq, self.faces)
 
+    def block(self, vertices: np.ndarray) -> np.ndarray:
+        """Distances ``(k, k)`` between the given vertices."""
+        return self.distances[np.ix_(vertices, vertices)]
+
+
+class EmbeddedDistance:
+    """:class:`SurfaceDistance`'s interpolated distances, for a metric given by an embedding.
+
+    Distances are Euclidean distances between rows of ``embedding`` (a spectral diffusion
+    map), computed only on the vertices a query touches -- the corners of the points' faces
+    and the fixed vertices -- so that no dense ``(n, n)`` matrix is kept. The interpolant is
+    :class:`SurfaceDistance`'s (squared distances interpolated barycentrically), so both give
+    the same values for the same metric. Enough to measure a correspondence
+    (:meth:`SymmetricGMDS.blocks`), not to optimise one.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    embedding : ndarray, shape (n, K)
+    """
+
+    def __init__(self, mesh: Mesh, embedding: np.ndarray):
+        psi = np.asarray(embedding, dtype=np.float64)
+        if psi.ndim != 2 or len(psi) != mesh.n_vertices:
+            raise ValueError(f"embedding must have {mesh.n_vertices} rows, got shape {psi.shape}")
+        self.mesh, self.embedding = mesh, psi
+        self.faces = np.ascontiguousarray(mesh.faces)
+
+    def block(self, vertices: np.ndarray) -> np.ndarray:
+        from scipy.spatial.distance import cdist
+
+        e = self.embedding[np.asarray(vertices, dtype=np.int64)]
+        return cdist(e, e)
+
+    def between(self, pts: SurfacePoints, fixed: np.ndarray) -> np.ndarray:
+        from scipy.spatial.distance import cdist
+
+        fixed = np.asarray(fixed, np.int64)
+        corners = self.faces[pts.face]
+        used, local = np.unique(np.concatenate([corners.ravel(), fixed]), return_inverse=True)
+        e = self.embedding[used]
+        sq = cdist(e, e, "sqeuclidean")
+        local_faces = np.ascontiguousarray(local[: corners.size].reshape(corners.shape))
+        return pair_distances(np.arange(len(corners), dtype=np.int64), pts.bary,
+                              np.ascontiguousarray(local[corners.size:]), sq, local_faces)
+
 
 class SymmetricGMDS:
     """Alternating optimisation of the two-sided correspondence ``C = (P x Q') u (Q x P')``.
@@ -235,8 +281,8 @@ class SymmetricGMDS:
         self.irls_rounds = int(irls_rounds)
         self.radius = radius
         self.history: list[float] = []
-        self._dx_pp = X.distances[np.ix_(self.P, self.P)]
-        self._dy_qq = Y.distances[np.ix_(self.Q, self.Q)]
+        self._dx_pp = X.block(self.P)
+        self._dy_qq = Y.block(self.Q)
         self._recent: list = []  # (points, ex, ey) of the last few interpolations
 
     # ------------------------------------------------------------------ blocks

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gh import DEFAULT_COARSE_STAGES, ShapeMetric, match, match_options_for, search_subsets
+from ..gh import DEFAULT_COARSE_STAGES, RANK_TAU_SCALE, ShapeMetric, match, match_options_for, search_subsets
 
 __all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
@@ -32,8 +32,10 @@ _MATRIX = False                   # gh_matrix: distances with orientation="ignor
 class PairwiseGH:
     """Symmetric ``(n, n)`` matrices of GH estimates (``distance``) and relative ones.
 
-    ``trimmed``: the same correspondences' trimmed distortion, relative like ``relative``
-    (:attr:`gromov.MatchResult.relative_trimmed`), which recognition ranks shapes by.
+    ``trimmed``: what recognition ranks shapes by, the same correspondences' trimmed
+    distortion relative like ``relative`` (:attr:`gromov.MatchResult.ranking_distance`): with
+    the heat-kernel diffusion metric and ``rank_tau_scale``, measured at that times the
+    diffusion time.
     """
 
     distance: np.ndarray
@@ -45,6 +47,7 @@ class PairwiseGH:
     results: dict = field(default_factory=dict)
     """``{(i, j): MatchResult}`` for the pairs asked for with ``keep`` (``i < j``)."""
     trimmed: np.ndarray | None = None
+    rank_tau_scale: float | None = None
 
 
 def _pair(ij):
@@ -57,12 +60,13 @@ def _pair(ij):
     options = dict(_OPTIONS)
     orientation = options.pop("orientation", "prefer")
     r = match(x, y, x.metric, orientation="ignore", **options)
+    options.pop("rank_tau_scale", None)
     full = None
     if (i, j) in _KEEP:
         full = r
         if orientation == "prefer" and not r.orientation > 0.5:  # the same run, then more
             full = match(x, y, x.metric, orientation="prefer", **options)
-    return r.distance, r.relative_distance, r.relative_trimmed, full
+    return r.distance, r.relative_distance, r.ranking_distance, full
 
 
 def available_cpus() -> int:
@@ -90,12 +94,14 @@ def _one_thread_per_worker():
 
 def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolution: int | None = 3000,
             metric_options: dict | None = None, progress: bool = False,
-            subsets=tuple(search_subsets())) -> list[ShapeMetric]:
+            subsets=tuple(search_subsets()), rank_tau_scale: float | None = None) -> list[ShapeMetric]:
     """Each shape's working mesh, dense metric, diameter, descriptors and samples, once.
 
     ``shapes`` are meshes, paths or :class:`ShapeMetric` objects (whose metric must be
     ``metric``); returns the prepared ``ShapeMetric`` objects in the same order. ``subsets``:
     sizes of the vertex subsets the initial search runs on (:func:`gromov.gh.search_subsets`).
+    ``rank_tau_scale``: also the heat distance recognition measures with
+    (:meth:`ShapeMetric.ranking_surface <gromov.gh.ShapeMetric.ranking_surface>`).
     """
     from tqdm import tqdm
 
@@ -111,6 +117,8 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
         s.distances, s.diameter, s.descriptors, s.samples(n_samples, seed)  # per shape, once
         for k in subsets:
             s.subset(k)
+        if rank_tau_scale is not None:
+            s.ranking_surface(rank_tau_scale)
     return out
 
 
@@ -202,7 +210,8 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
-              keep=(), known: dict | None = None, **match_options) -> PairwiseGH:
+              keep=(), known: dict | None = None, rank_tau_scale: float | None = RANK_TAU_SCALE,
+              **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -226,6 +235,11 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         sets share): ``{(i, j): (distance, relative, trimmed, result)}``, ``result`` the
         ``MatchResult`` (required for a pair in ``keep``, else may be None). They are not
         run again.
+    rank_tau_scale : float or None, default RANK_TAU_SCALE (0.5)
+        With the heat-kernel diffusion metric, ``trimmed`` measures each correspondence with
+        the heat distance at this times the diffusion time (:func:`gromov.match`'s
+        ``rank_tau_scale``); None, or another metric: in the metric of the match. The GH
+        estimates (``distance``, ``relative``) and the correspondences are the same either way.
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``...).
 
@@ -238,7 +252,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         image being as good a correspondence as any: ``orientation`` only decides which map
         ``results`` holds (where the map found reverses the orientation, ``match`` runs again
         with ``orientation="prefer"``, whose first steps are the same run). ``trimmed`` holds
-        the trimmed distortion of the same correspondence (:func:`gromov.gmds.trimmed_rms`).
+        the trimmed distortion of the same correspondence (:func:`gromov.gmds.trimmed_rms`),
+        measured as ``rank_tau_scale`` says.
     """
     shapes = list(shapes)
     if len(shapes) < 2:
@@ -248,7 +263,7 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     t0 = time.perf_counter()
     prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
                        metric_options=metric_options, progress=progress,
-                       subsets=_subsets(match_options))
+                       subsets=_subsets(match_options), rank_tau_scale=rank_tau_scale)
     t1 = time.perf_counter()
     n = len(prepared)
     keep = frozenset((int(i), int(j)) for i, j in keep)
@@ -268,7 +283,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     trim = np.zeros((n, n))
     kept = {}
     runs = _run(prepared, pairs, keep, jobs, progress, f"{metric} GH pairs",
-                dict(n_samples=n_samples, seed=seed, **match_options), matrix=True) if pairs else []
+                dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale, **match_options),
+                matrix=True) if pairs else []
     for (i, j), (d, r, t, full) in zip(pairs + list(known), list(runs) + list(known.values())):
         if full is not None and (i, j) not in keep:
             full = None
@@ -277,4 +293,5 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         trim[i, j] = trim[j, i] = t
         if full is not None:
             kept[i, j] = full
-    return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim)
+    return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim,
+                      rank_tau_scale)

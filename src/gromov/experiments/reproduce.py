@@ -49,7 +49,7 @@ import numpy as np
 
 from .. import perturb as _perturb
 from ..errors import GromovError
-from ..gh import ShapeMetric
+from ..gh import RANK_TAU_SCALE, ShapeMetric
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..metrics.diffusion import correspondence_options
@@ -107,6 +107,10 @@ class Settings:
         them.
     rank_by : {"trimmed", "gh"}
         What recognition ranks pairs by (:data:`RANK_BY`).
+    rank_tau_scale : float or None
+        The trimmed ranking measures each diffusion correspondence with the heat distance at
+        this times the diffusion time (:data:`gromov.gh.RANK_TAU_SCALE`; None: in the metric
+        of the match).
     """
 
     dataset: str
@@ -120,6 +124,7 @@ class Settings:
     metric_options: dict = field(default_factory=lambda: {m: {} for m in METRICS})
     rank_by: str = "trimmed"
     correspondence_options: dict = field(default_factory=lambda: {m: {} for m in METRICS})
+    rank_tau_scale: float | None = RANK_TAU_SCALE
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -442,7 +447,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
                     shapes.diameters.setdefault((s.cls, s.pose), sm.diameter)
         timings[f"{name}.{metric}.metrics_s"] = round(time.perf_counter() - t, 2)
         r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
-                      progress=not quiet, keep=keep, known=known)
+                      progress=not quiet, keep=keep, known=known, rank_tau_scale=st.rank_tau_scale)
         for i in range(len(items)):
             for j in range(i + 1, len(items)):
                 if items[i].label in shapes.shared and items[j].label in shapes.shared:
@@ -668,7 +673,8 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
 def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: int | None = None,
               seed: int = 0, quiet: bool = False, command: str | None = None,
               diffusion: dict | None = None, weld_join: str = "pinch", classes: dict | None = None,
-              topkids: bool = True, rank_by: str = "trimmed") -> dict:
+              topkids: bool = True, rank_by: str = "trimmed",
+              rank_tau_scale: float | None = RANK_TAU_SCALE) -> dict:
     """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
 
     Parameters
@@ -715,6 +721,11 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         (:data:`RANK_BY`): the trimmed distortion of each pair's GH correspondence (RMS of its
         best-fitting 80% of pairs, :func:`gromov.gmds.trimmed_rms`) or the GH estimate. The
         EERs of both are recorded (``eer_gh``, ``eer_trimmed``).
+    rank_tau_scale : float or None, default RANK_TAU_SCALE (0.5)
+        The trimmed distortion of a heat-kernel diffusion correspondence is measured with the
+        heat distance at this times the diffusion time (:func:`gromov.match`'s
+        ``rank_tau_scale``); None: in the metric of the match (as before session 16). The
+        correspondences, GH estimates and d(C, C0) do not depend on it. Recorded in ``params``.
 
     Returns
     -------
@@ -738,7 +749,10 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     st = settings_for(dataset, quick, seed=seed, classes=classes, topkids=topkids)
     if rank_by not in RANK_BY:
         raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
-    st = replace(st, rank_by=rank_by)
+    if rank_tau_scale is not None and not (isinstance(rank_tau_scale, (int, float)) and rank_tau_scale > 0
+                                           and np.isfinite(rank_tau_scale)):
+        raise ValueError(f"rank_tau_scale must be a positive number or None, got {rank_tau_scale!r}")
+    st = replace(st, rank_by=rank_by, rank_tau_scale=None if rank_tau_scale is None else float(rank_tau_scale))
     if weld_join not in _perturb.WELD_JOINS:
         raise ValueError(f"weld_join must be one of {_perturb.WELD_JOINS}, got {weld_join!r}")
     if diffusion:

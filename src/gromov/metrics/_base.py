@@ -246,5 +246,15 @@ class RestrictedSolver(MetricSolver):
             self.inner._pairwise = None  # one (n, n) matrix per shape is kept, not two
         return self._pairwise
 
+    def at_tau(self, tau: float) -> "RestrictedSolver":
+        """The inner heat-kernel solver at another diffusion time (its ``at_tau``), seen on the
+        same vertices."""
+        return RestrictedSolver(self.shape, self.inner.at_tau(tau))
+
+    @property
+    def embedding(self) -> np.ndarray:
+        """The inner spectral solver's embedding on this shape's vertices (its first rows)."""
+        return self.inner.embedding[: self.n_vertices]
+
     def __repr__(self) -> str:
         return f"RestrictedSolver(n_vertices={self.n_vertices}, inner={self.inner!r})"

