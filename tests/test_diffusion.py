@@ -266,3 +266,40 @@ def test_normalized_heat_distance_truncation_bound_holds_on_the_tosca_cat(cat_wo
     exact = HeatDiffusionSolver(w, units="normalized", rtol=1e-14)
     ref = exact.from_sources(idx)
     assert np.abs(d**2 - ref**2).max() <= fast.truncation_bound + 1e-12
+
+
+def test_heat_distance_at_another_time_from_the_same_eigenpairs():
+    """``at_tau``: the same eigenpairs at another diffusion time. At a larger time it equals a
+    fresh solver (the truncation only shrinks); at half the time it is the heat distance
+    band-limited to the first solver's eigenpairs, close to a full solve; at the same time it
+    is the same embedding; normalised rows stay unit rows."""
+    m = icosphere(4)
+    base = HeatDiffusionSolver(m, tau=0.005, units="raw")
+    d0 = base.pairwise()
+    same = base.at_tau(0.005)
+    np.testing.assert_array_equal(same.embedding, base.embedding)
+    for tau, tol in ((0.01, 1e-6), (0.0025, 1e-3)):
+        scaled, fresh = base.at_tau(tau), HeatDiffusionSolver(m, tau=tau, units="raw")
+        assert scaled.tau == tau and scaled.t == pytest.approx(tau * base.area)
+        assert len(scaled.eigenvalues) == len(base.eigenvalues)       # no new decomposition
+        d, ref = scaled.pairwise(), fresh.pairwise()
+        assert np.abs(d - ref).max() < tol * ref.max(), tau
+        assert not np.allclose(d / d.max(), d0 / d0.max(), atol=1e-3)  # another metric
+    assert base.at_tau(0.01).truncation_bound < base.truncation_bound
+    norm = HeatDiffusionSolver(m, tau=0.01, units="normalized").at_tau(0.005)
+    np.testing.assert_allclose(np.linalg.norm(norm.embedding, axis=1), 1.0, rtol=1e-12)
+    with pytest.raises(ValueError, match="tau must be positive"):
+        base.at_tau(0.0)
+
+
+def test_heat_distance_at_another_time_on_a_filled_mesh():
+    """With small holes filled the restricted solver rescales its inner solver."""
+    m = icosphere(4)
+    keep = np.ones(m.n_faces, bool)
+    keep[[0, 200, 400]] = False
+    holed = Mesh(m.vertices, m.faces[keep])
+    s = metric_solver(holed, "diffusion", kernel="heat", units="raw")
+    half = s.at_tau(0.0025)
+    assert half.n_vertices == holed.n_vertices and half.embedding.shape[0] == holed.n_vertices
+    ref = metric_solver(holed, "diffusion", kernel="heat", units="raw", tau=0.0025).pairwise()
+    assert np.abs(half.pairwise() - ref).max() < 1e-3 * ref.max()

@@ -521,3 +521,56 @@ def test_signature_mismatch_vanishes_at_the_same_vertex():
     assert np.all(d2 >= 0)
     # symmetric in the two vertices
     np.testing.assert_allclose(signature_mismatch(s, s, np.array([5]))[0, A], d2[:, 5])
+
+
+def test_embedded_distance_interpolates_like_the_dense_matrix():
+    """EmbeddedDistance (distances from an embedding, computed on the touched vertices only)
+    gives SurfaceDistance's interpolated distances for the same metric."""
+    from gromov.gmds import EmbeddedDistance, SurfaceDistance, SurfacePoints
+    from gromov.metrics import HeatDiffusionSolver
+
+    g = bumpy_torus()
+    s = HeatDiffusionSolver(g, units="raw")
+    dense, emb = SurfaceDistance(g, s.pairwise()), EmbeddedDistance(g, s.embedding)
+    rng = np.random.default_rng(1)
+    pts = SurfacePoints(rng.integers(0, g.n_faces, 9), rng.dirichlet(np.ones(3), 9))
+    fixed = np.array([3, 50, 400, 3], np.int64)
+    np.testing.assert_allclose(emb.between(pts, fixed), dense.between(pts, fixed), rtol=1e-9, atol=1e-12)
+    idx = np.array([5, 9, 100])
+    np.testing.assert_allclose(emb.block(idx), dense.block(idx), rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="embedding must have"):
+        EmbeddedDistance(g, s.embedding[:-1])
+
+
+def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
+    """match(rank_tau_scale=s): the correspondence and the GH estimate do not change; at s = 1
+    the ranking distance is the trimmed distortion itself; at 1/2 it is that correspondence's
+    trimmed distortion in the heat distance at half the time (checked against a solver built
+    at that time); other metrics and None give relative_trimmed; bad values raise."""
+    from gromov.gmds import SurfacePoints, SymmetricGMDS, trimmed_rms
+
+    a, b = bumpy_torus(), moved_and_permuted(bumpy_torus(), 3)
+    b = Mesh(b.vertices * np.array([1.0, 1.1, 0.95]), b.faces)   # not isometric
+    x = ShapeMetric(a, "diffusion", resolution=None, metric_options={"units": "raw"})
+    y = ShapeMetric(b, "diffusion", resolution=None, metric_options={"units": "raw"})
+    plain = match(x, y, n_samples=30, orientation="ignore")
+    one = match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=1.0)
+    half = match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=0.5)
+    assert plain.ranking_distance == plain.relative_trimmed
+    assert one.ranking_distance == pytest.approx(one.relative_trimmed, rel=1e-9)
+    for r in (one, half):
+        assert r.distance == plain.distance and np.array_equal(r.x_to_y_face, plain.x_to_y_face)
+    fine = [ShapeMetric(m, "diffusion", resolution=None, metric_options={"units": "raw", "tau": 0.0025})
+            for m in (a, b)]
+    # the input meshes are the working meshes here: the result's faces are working faces
+    gm = SymmetricGMDS(fine[0].surface, fine[1].surface, x.samples(30, 0), y.samples(30, 0))
+    ex, ey = gm.blocks(SurfacePoints(half.x_to_y_face, half.x_to_y_bary),
+                       SurfacePoints(half.y_to_x_face, half.y_to_x_bary))
+    want = 0.5 * trimmed_rms((ex - ey)[~np.eye(len(ex), dtype=bool)]) / max(f.diameter for f in fine)
+    assert half.ranking_distance == pytest.approx(want, rel=1e-3)
+    assert abs(half.ranking_distance - half.relative_trimmed) > 1e-3 * half.relative_trimmed
+    geo = match(a, b, "geodesic", n_samples=20, resolution=None, rank_tau_scale=0.5)
+    assert geo.ranking_distance == geo.relative_trimmed
+    for bad in (0, -1.0, float("inf"), "0.5"):
+        with pytest.raises(ValueError, match="rank_tau_scale must be"):
+            match(x, y, n_samples=30, rank_tau_scale=bad)

@@ -133,3 +133,25 @@ def test_prepare_warns_when_the_matrices_will_not_fit(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         pairwise.prepare(shapes, "geodesic", n_samples=10, resolution=None)
+
+
+def test_recognition_ranks_by_the_distortion_at_the_finer_scale():
+    """gh_matrix's trimmed matrix holds each correspondence's ranking distance (heat kernel:
+    measured at rank_tau_scale x tau, default RANK_TAU_SCALE); None ranks in the match's own
+    metric; the GH estimates are the same either way."""
+    from gromov.gh import RANK_TAU_SCALE
+
+    shapes, labels = _sheets()
+    shapes = shapes[:2] + shapes[3:5]
+    opts = {"units": "raw"}
+    r = gh_matrix(shapes, "diffusion", n_samples=20, resolution=None, metric_options=opts,
+                  jobs=2, keep=[(0, 2)])
+    old = gh_matrix(shapes, "diffusion", n_samples=20, resolution=None, metric_options=opts,
+                    jobs=1, rank_tau_scale=None)
+    assert r.rank_tau_scale == RANK_TAU_SCALE == 0.5 and old.rank_tau_scale is None
+    np.testing.assert_array_equal(r.distance, old.distance)
+    assert r.trimmed[0, 2] == r.results[0, 2].ranking_distance
+    assert r.results[0, 2].ranking_distance != r.results[0, 2].relative_trimmed
+    off = ~np.eye(4, dtype=bool)
+    assert np.all(r.trimmed[off] > 0) and not np.allclose(r.trimmed, old.trimmed)
+    assert np.array_equal(r.trimmed, r.trimmed.T)

@@ -37,9 +37,12 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
             assert np.all(d[~np.eye(n, dtype=bool)] > 0)
             # recognition ranks by the trimmed distortion by default; both EERs are recorded
             t = np.array(rec[m]["trimmed"])
-            assert t.shape == (n, n) and np.allclose(t, t.T) and np.all(t <= d + 1e-9)
+            assert t.shape == (n, n) and np.allclose(t, t.T) and np.all(t[~np.eye(n, dtype=bool)] > 0)
+            if m == "geodesic":   # diffusion measures it at a finer scale (rank_tau_scale)
+                assert np.all(t <= d + 1e-9)
             assert rec[m]["ranked_by"] == "trimmed" and r["params"]["rank_by"] == "trimmed"
             assert rec[m]["eer"] == rec[m]["eer_trimmed"] and 0.0 <= rec[m]["eer_gh"] <= 1.0
+    assert r["params"]["rank_tau_scale"] == 0.5
     # the perturbations did what they say: welds lower the Euler characteristic, holes add loops
     shapes = r["recognition"]["weld"]["shapes"]
     welded = [s for label, s in shapes.items() if "+weld" in label]
@@ -215,6 +218,9 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     assert not (tmp_path / "o").exists()  # refused before any work
     with pytest.raises(ValueError, match="rank_by must be one of"):
         reproduce(None, tmp_path / "o", quick=True, rank_by="median")
+    for bad in (0, -0.5, float("nan"), "0.5"):
+        with pytest.raises(ValueError, match="rank_tau_scale must be"):
+            reproduce(None, tmp_path / "o", quick=True, rank_tau_scale=bad)
     assert not (tmp_path / "o").exists()
 
 
@@ -237,6 +243,13 @@ def test_rank_by_option_reaches_reproduce(monkeypatch, tmp_path):
         assert seen["rank_by"] == want
     with pytest.raises(SystemExit):
         main(["reproduce", "--rank-by", "median"])
+    for argv, want in (([], 0.5), (["--rank-tau-scale", "1"], None), (["--rank-tau-scale", "0.25"], 0.25)):
+        with pytest.raises(Stop):
+            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
+        assert seen["rank_tau_scale"] == want
+    for bad in ("0", "-1", "x", "inf"):
+        with pytest.raises(SystemExit):
+            main(["reproduce", "--rank-tau-scale", bad])
 
 
 def test_weld_join_option(tmp_path, capsys):
