@@ -57,7 +57,7 @@ def main(argv=None):
                     help="diffusion time of the raw heat distance (default the library's, 0.005)")
     ap.add_argument("--stretch", type=float, default=0.0,
                     help="Synthetic(pose_stretch=...): non-isometric poses, as TOSCA's (0.1: geodesic "
-                         "distances change by 3-6%%, TOSCA's people 2.5-4.5%%)")
+                         "distances change by 2.4-6.5%%, TOSCA's people 2.5-4.5%%)")
     ap.add_argument("--rank-tau-scale", type=float, default=RANK_TAU_SCALE,
                     help="the trimmed ranking measures each correspondence at this times the "
                          "diffusion time (default the library's; 1: in the metric of the match)")

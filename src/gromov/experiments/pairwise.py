@@ -60,7 +60,6 @@ def _pair(ij):
     options = dict(_OPTIONS)
     orientation = options.pop("orientation", "prefer")
     r = match(x, y, x.metric, orientation="ignore", **options)
-    options.pop("rank_tau_scale", None)
     full = None
     if (i, j) in _KEEP:
         full = r

@@ -88,7 +88,9 @@ Construction
    This is forward kinematics with rotation angles (not matrices) blended, which does
    not collapse the way linear blend skinning does. Parts move rigidly away from their
    joints, so poses are nearly isometric: geodesic distances change by 1-2 % on average
-   (each pose below about 3.5 %).
+   (each pose below about 3.5 %). TOSCA's poses are not (2.5-9 %); ``pose_stretch`` stretches
+   the rest mesh of each pose by a smooth random displacement first (:func:`_stretched`), a
+   validation set whose variation within a class is TOSCA's.
 
 Generating the rest mesh takes a few tenths of a second per class and is cached per
 process (per class and ``n_vertices``); a pose takes a few hundredths of a second and is
@@ -723,7 +725,8 @@ def _stretched(V: np.ndarray, strain: float, rng: np.random.Generator) -> np.nda
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     phase = rng.uniform(0.0, 2.0 * np.pi, _STRETCH_WAVES)
     amp = rng.normal(size=(_STRETCH_WAVES, 3))
-    # gradient entries a_ki * k * d_kj * cos(.): mean square sum_k |a_k|^2 k^2 / 3 / 2 / 9 * 3
+    # gradient entries sum_k a_ki k d_kj cos(.): mean square over the 9 entries (and over x,
+    # cos^2 averaging 1/2, the waves' cross terms 0) is sum_k |a_k|^2 k^2 / 18
     rms = k * np.sqrt(np.sum(amp**2) / (2.0 * 9.0))
     amp *= strain / max(rms, 1e-300)
     return V + np.sin(V @ (k * dirs).T + phase) @ amp
@@ -1045,7 +1048,7 @@ class Synthetic:
         are no longer nearly isometric. TOSCA's are not: between two poses its geodesic
         distances change by a median 2.5 % (victoria), 4.5 % (david), 8-9 % (cat, dog)
         (``benchmarks/tosca_isometry.py``); at 0.1 those of the synthetic people change by
-        3-6.5 % and the cat's by 4-5 % (rest vs poses 1-4, measured with the same benchmark's
+        2.4-6.5 % and the cat's by 4-5 % (rest vs poses 1-4, measured with the same benchmark's
         statistic), against 0-1 % at 0. A more faithful validation set for recognition, where
         the variation within a class competes with the difference between classes. The rest
         pose is not stretched.
