@@ -60,6 +60,7 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
     html = (out / "index.html").read_text()
     assert "data:image/png;base64," in html and "13.5" in html   # the paper's geodesic EER beside ours
     assert "trimmed distortion" in html and "EER, GH estimate" in html
+    assert "heat distance at 0.5 × the diffusion time" in html   # what the diffusion ranking measures
 
 
 def test_quick_run_correspondence_is_measured(quick_run):

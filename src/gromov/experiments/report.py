@@ -600,6 +600,11 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
                    "which sets aside the pairs a local change of topology altered (our choice, "
                    "not the paper's: made on the synthetic set and on TOSCA classes the paper did "
                    "not use). The last column ranks by the GH estimate itself (½ RMS distortion)")
+            scale = _get(results, "params", "rank_tau_scale")
+            if scale is not None:
+                how = how.replace(" (our choice", f"; for the diffusion metric measured with the heat "
+                                  f"distance at {scale:g} × the diffusion time the correspondence was "
+                                  f"found at (our choices", 1)
             other = "EER, GH estimate"
         elif ranked == {"gh"}:
             how = ("ranking the pairs by the Gromov-Hausdorff estimate (½ RMS distortion). The "
