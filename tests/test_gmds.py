@@ -574,3 +574,23 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     for bad in (0, -1.0, float("inf"), "0.5"):
         with pytest.raises(ValueError, match="rank_tau_scale must be"):
             match(x, y, n_samples=30, rank_tau_scale=bad)
+
+
+def test_two_shapes_prepared_with_different_metrics_warn():
+    """Distortion between a raw and a normalised heat metric compares two metrics: a warning;
+    the same options (or a hole-filling wrapper on one side only) do not warn."""
+    import warnings
+
+    from gromov.errors import GromovWarning
+    from gromov.gh import _metric_signature
+
+    a, b = bumpy_torus(), moved_and_permuted(bumpy_torus(), 1)
+    raw = ShapeMetric(a, "diffusion", resolution=None, metric_options={"units": "raw"})
+    norm = ShapeMetric(b, "diffusion", resolution=None, metric_options={"units": "normalized"})
+    same = ShapeMetric(b, "diffusion", resolution=None, metric_options={"units": "raw", "fill_holes": None})
+    assert "n_vertices" not in _metric_signature(raw) and "units='raw'" in _metric_signature(raw)
+    with pytest.warns(GromovWarning, match="measure distances differently"):
+        match(raw, norm, n_samples=10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GromovWarning)
+        match(raw, same, n_samples=10)

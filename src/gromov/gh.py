@@ -761,6 +761,16 @@ def pairs_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np
 
 
 # ----------------------------------------------------------------------------- match
+def _metric_signature(s: "ShapeMetric") -> str:
+    """The solver's type and parameters (not its size): what two shapes must share for their
+    distances to be compared. A hole-filling wrapper is looked through (it is there or not
+    depending on the mesh, not on the options)."""
+    import re
+
+    solver = getattr(s.solver, "inner", s.solver)
+    return re.sub(r"n_vertices=\d+,? ?", "", repr(solver))
+
+
 def match_options_for(shapes, metric: str, metric_options: dict | None) -> dict:
     """Metric options for the shapes of a correspondence that are not prepared yet.
 
@@ -964,6 +974,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     metric_options = match_options_for((X, Y), metric, metric_options)
     sx = _as_shape(X, metric, resolution, metric_options, "X")
     sy = _as_shape(Y, metric, resolution, metric_options, "Y")
+    if _metric_signature(sx) != _metric_signature(sy):
+        warnings.warn(f"X and Y measure distances differently ({_metric_signature(sx)} vs "
+                      f"{_metric_signature(sy)}): their distortion compares two different metrics; "
+                      f"prepare both ShapeMetrics with the same metric_options", GromovWarning, stacklevel=2)
     for name, s in (("X", sx), ("Y", sy)):
         if n_samples > s.mesh.n_vertices:
             raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")
