@@ -761,6 +761,15 @@ def pairs_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np
 
 
 # ----------------------------------------------------------------------------- match
+def check_rank_tau_scale(value) -> float | None:
+    """``rank_tau_scale`` as a float (or None), or ``ValueError`` unless a positive finite number."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not 0.0 < value < np.inf:
+        raise ValueError(f"rank_tau_scale must be a positive number or None, got {value!r}")
+    return float(value)
+
+
 def _metric_signature(s: "ShapeMetric") -> str:
     """The solver's type and parameters (not its size): what two shapes must share for their
     distances to be compared. A hole-filling wrapper is looked through (it is there or not
@@ -953,9 +962,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"orientation must be 'ignore' or 'prefer', got {orientation!r}")
     if not 0.0 < extend_keep <= 1.0:
         raise ValueError(f"extend_keep must be in (0, 1], got {extend_keep!r}")
-    if rank_tau_scale is not None and not (isinstance(rank_tau_scale, numbers.Real)
-                                           and 0.0 < rank_tau_scale < np.inf):
-        raise ValueError(f"rank_tau_scale must be a positive number or None, got {rank_tau_scale!r}")
+    check_rank_tau_scale(rank_tau_scale)
     if not (np.isfinite(signature_weight) and signature_weight >= 0):
         raise ValueError(f"signature_weight must be a finite number >= 0, got {signature_weight!r}")
     checked = [("n_starts", n_starts), ("n_extend", n_extend)]

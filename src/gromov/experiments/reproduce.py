@@ -49,7 +49,7 @@ import numpy as np
 
 from .. import perturb as _perturb
 from ..errors import GromovError
-from ..gh import RANK_TAU_SCALE, ShapeMetric
+from ..gh import RANK_TAU_SCALE, ShapeMetric, check_rank_tau_scale
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..metrics.diffusion import correspondence_options
@@ -749,10 +749,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     st = settings_for(dataset, quick, seed=seed, classes=classes, topkids=topkids)
     if rank_by not in RANK_BY:
         raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
-    if rank_tau_scale is not None and not (isinstance(rank_tau_scale, (int, float)) and rank_tau_scale > 0
-                                           and np.isfinite(rank_tau_scale)):
-        raise ValueError(f"rank_tau_scale must be a positive number or None, got {rank_tau_scale!r}")
-    st = replace(st, rank_by=rank_by, rank_tau_scale=None if rank_tau_scale is None else float(rank_tau_scale))
+    st = replace(st, rank_by=rank_by, rank_tau_scale=check_rank_tau_scale(rank_tau_scale))
     if weld_join not in _perturb.WELD_JOINS:
         raise ValueError(f"weld_join must be one of {_perturb.WELD_JOINS}, got {weld_join!r}")
     if diffusion:

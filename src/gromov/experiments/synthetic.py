@@ -730,6 +730,8 @@ def _stretched(V: np.ndarray, strain: float, rng: np.random.Generator) -> np.nda
     rms = k * np.sqrt(np.sum(amp**2) / (2.0 * 9.0))
     amp *= strain / max(rms, 1e-300)
     return V + np.sin(V @ (k * dirs).T + phase) @ amp
+
+
 def _rotation_matrices(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """``(k, 3, 3)`` rotations about the unit ``axis`` by each angle (Rodrigues' formula)."""
     K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
