@@ -513,7 +513,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         solver's eigenpairs: no new eigendecomposition.
 
         With :math:`\psi_k = e^{-\lambda_k t}\phi_k` computed, the embedding at
-        :math:`t' = 	au' \cdot \mathrm{area}` is :math:`e^{-\lambda_k (t' - t)}\psi_k` over the
+        :math:`t' = \tau' \cdot \mathrm{area}` is :math:`e^{-\lambda_k (t' - t)}\psi_k` over the
         same ``K`` eigenpairs. For ``tau >= self.tau`` the truncation error only shrinks. For a
         smaller ``tau`` the result is the heat distance band-limited to those eigenpairs,
         :math:`d^2 = \sum_{k \le K} e^{-2\lambda_k t'}(\phi_k(x) - \phi_k(y))^2`; its worst-case
