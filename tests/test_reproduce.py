@@ -222,6 +222,11 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     for bad in (0, -0.5, float("nan"), "0.5"):
         with pytest.raises(ValueError, match="rank_tau_scale must be"):
             reproduce(None, tmp_path / "o", quick=True, rank_tau_scale=bad)
+    with pytest.raises(ValueError, match="pose_stretch must be a number"):
+        reproduce(None, tmp_path / "o", quick=True, pose_stretch=0.5)
+    (tmp_path / "data" / "tosca").mkdir(parents=True)
+    with pytest.raises(ValueError, match="TOSCA's are as scanned"):
+        reproduce(tmp_path / "data", tmp_path / "o", quick=True, pose_stretch=0.1)
     assert not (tmp_path / "o").exists()
 
 
@@ -248,6 +253,10 @@ def test_rank_by_option_reaches_reproduce(monkeypatch, tmp_path):
         with pytest.raises(Stop):
             main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
         assert seen["rank_tau_scale"] == want
+    for argv, want in (([], 0.0), (["--pose-stretch", "0.1"], 0.1)):
+        with pytest.raises(Stop):
+            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
+        assert seen["pose_stretch"] == want
     for bad in ("0", "-1", "x", "inf"):
         with pytest.raises(SystemExit):
             main(["reproduce", "--rank-tau-scale", bad])
