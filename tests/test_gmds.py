@@ -571,6 +571,15 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     assert abs(half.ranking_distance - half.relative_trimmed) > 1e-3 * half.relative_trimmed
     geo = match(a, b, "geodesic", n_samples=20, resolution=None, rank_tau_scale=0.5)
     assert geo.ranking_distance == geo.relative_trimmed
+    # the paper's graph diffusion, behind the hole-filling wrapper: not a heat kernel either
+    keep = np.ones(a.n_faces, bool)
+    keep[[0, 300]] = False
+    holed = Mesh(a.vertices, a.faces[keep])
+    graph = ShapeMetric(holed, "diffusion", resolution=None, metric_options={"kernel": "connectivity"})
+    assert type(graph.solver).__name__ == "RestrictedSolver" and graph.ranking_surface(0.5) is None
+    g = match(graph, ShapeMetric(b, "diffusion", resolution=None, metric_options={"kernel": "connectivity"}),
+              n_samples=20, rank_tau_scale=0.5)
+    assert g.ranking_distance == g.relative_trimmed
     for bad in (0, -1.0, float("inf"), "0.5"):
         with pytest.raises(ValueError, match="rank_tau_scale must be"):
             match(x, y, n_samples=30, rank_tau_scale=bad)

@@ -205,13 +205,12 @@ class ShapeMetric:
         shape's diffusion time, from the same eigenpairs (cached per scale), or None when the
         metric is not the heat-kernel diffusion distance. What ``match(..., rank_tau_scale=)``
         measures a correspondence with."""
-        at_tau = getattr(self.solver, "at_tau", None)
-        if at_tau is None:
+        inner = getattr(self.solver, "inner", self.solver)   # through a hole-filling wrapper
+        if not hasattr(inner, "at_tau"):
             return None
         key = float(tau_scale)
         if key not in self._ranking:
-            inner = getattr(self.solver, "inner", self.solver)
-            scaled = at_tau(inner.tau * key)
+            scaled = self.solver.at_tau(inner.tau * key)
             psi = scaled.embedding
             sq = (psi**2).sum(1)
             # the diameter: the largest distance, in row blocks (no (n, n) matrix kept)
