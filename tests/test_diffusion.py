@@ -288,6 +288,12 @@ def test_heat_distance_at_another_time_from_the_same_eigenpairs():
     assert base.at_tau(0.01).truncation_bound < base.truncation_bound
     norm = HeatDiffusionSolver(m, tau=0.01, units="normalized").at_tau(0.005)
     np.testing.assert_allclose(np.linalg.norm(norm.embedding, axis=1), 1.0, rtol=1e-12)
+    ref = HeatDiffusionSolver(m, tau=0.005, units="normalized").pairwise()
+    assert np.abs(norm.pairwise() - ref).max() < 1e-3 * ref.max()
+    length = HeatDiffusionSolver(m, tau=0.005, units="length")
+    ref = HeatDiffusionSolver(m, tau=0.01, units="length").pairwise()
+    assert np.abs(length.at_tau(0.01).pairwise() - ref).max() < 1e-6 * ref.max()
+    assert base._basis is None and length._basis is None   # no second (n, K) array kept
     with pytest.raises(ValueError, match="tau must be positive"):
         base.at_tau(0.0)
 

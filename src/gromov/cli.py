@@ -107,12 +107,12 @@ def _diffusion_options(args) -> dict:
 
 def _rank_tau_scale(text: str) -> float | None:
     """``--rank-tau-scale``: a positive number; 1 is the metric of the match itself (None)."""
+    from .gh import check_rank_tau_scale
+
     try:
-        v = float(text)
+        v = check_rank_tau_scale(float(text))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not (v > 0 and np.isfinite(v)):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return None if v == 1.0 else v
 
 

@@ -232,21 +232,23 @@ class EmbeddedDistance:
         self.mesh, self.embedding = mesh, psi
         self.faces = np.ascontiguousarray(mesh.faces)
 
-    def block(self, vertices: np.ndarray) -> np.ndarray:
-        from scipy.spatial.distance import cdist
+    def _squared(self, vertices: np.ndarray) -> np.ndarray:
+        """Squared distances between the given vertices, from the Gram matrix (one BLAS
+        product, as the dense metric is made)."""
+        e = self.embedding[vertices]
+        norms = np.einsum("ij,ij->i", e, e)
+        sq = np.maximum(norms[:, None] + norms[None, :] - 2.0 * (e @ e.T), 0.0)
+        np.fill_diagonal(sq, 0.0)
+        return sq
 
-        e = self.embedding[np.asarray(vertices, dtype=np.int64)]
-        return cdist(e, e)
+    def block(self, vertices: np.ndarray) -> np.ndarray:
+        return np.sqrt(self._squared(np.asarray(vertices, dtype=np.int64)))
 
     def between(self, pts: SurfacePoints, fixed: np.ndarray) -> np.ndarray:
         fixed = np.asarray(fixed, np.int64)
         corners = self.faces[pts.face]
         used, local = np.unique(np.concatenate([corners.ravel(), fixed]), return_inverse=True)
-        e = self.embedding[used]
-        # squared distances from the Gram matrix (one BLAS product, as the dense metric is made)
-        norms = np.einsum("ij,ij->i", e, e)
-        sq = np.maximum(norms[:, None] + norms[None, :] - 2.0 * (e @ e.T), 0.0)
-        np.fill_diagonal(sq, 0.0)
+        sq = self._squared(used)
         local_faces = np.ascontiguousarray(local[: corners.size].reshape(corners.shape))
         return pair_distances(np.arange(len(corners), dtype=np.int64), pts.bary,
                               np.ascontiguousarray(local[corners.size:]), sq, local_faces)

@@ -492,8 +492,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
                 lam, phi = _dense_generalized(self.stiffness, self.mass)
                 lam = np.maximum(lam, 0.0)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
-                self._basis = (lam, phi * np.exp(-lam * t))
-                return self._normalized(self._basis[1] * self.unit_scale)
+                return self._scaled(lam, phi * np.exp(-lam * t))
             lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
             order = np.argsort(lam)
             lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
@@ -505,8 +504,18 @@ class HeatDiffusionSolver(_SpectralDiffusion):
             k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
         self.eigenvalues = lam
         self.truncation_bound = float(np.exp(-2.0 * lam[-1] * t) * 2.0 * max_inv_mass) * self.unit_scale**2
-        self._basis = (lam, psi)
-        return self._normalized(psi * self.unit_scale)   # a fresh array
+        return self._scaled(lam, psi)
+
+    def _scaled(self, lam: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        """The embedding from the raw one ``psi = exp(-lambda t) phi`` (a fresh array, changed
+        in place): times ``unit_scale``, rows normalised with ``units="normalized"`` -- which
+        loses ``psi``, so that ``at_tau`` can start from it, it is then kept (``_basis``)."""
+        if self.units == "normalized":
+            self._basis = (lam, psi)
+            psi = psi.copy()
+        else:
+            psi *= self.unit_scale
+        return self._normalized(psi)
 
     def at_tau(self, tau: float) -> "HeatDiffusionSolver":
         r"""The same heat distance at diffusion time ``tau`` (relative to the area), from this
@@ -533,22 +542,24 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         out.stiffness, out.mass, out.area = self.stiffness, self.mass, self.area
         out.t = out.tau * out.area
         out.unit_scale = float(np.sqrt(32.0 * np.pi) * out.t) if out.units == "length" else 1.0
-        raw = psi * np.exp(-lam * (out.t - self.t))
-        out.eigenvalues, out._basis = lam, (lam, raw)
+        out.eigenvalues = lam
         if self.truncation_bound == 0.0:
             out.truncation_bound = 0.0
         else:
             max_inv_mass = float((1.0 / self.mass.diagonal()).max())
             out.truncation_bound = float(np.exp(-2.0 * lam[-1] * out.t) * 2.0 * max_inv_mass) * out.unit_scale**2
-        psi_out = out._normalized(raw * out.unit_scale)
+        psi_out = out._scaled(lam, psi * np.exp(-lam * (out.t - self.t)))
         psi_out.flags.writeable = False
         out._psi = psi_out
         return out
 
     def _basis_pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(lambda, psi)``: the eigenvalues and the raw embedding ``exp(-lambda t) phi``."""
-        self.embedding  # computed once
-        return self._basis
+        """``(lambda, psi)``: the eigenvalues and the raw embedding ``exp(-lambda t) phi`` (the
+        embedding itself, divided by ``unit_scale``, unless its rows were normalised)."""
+        psi = self.embedding  # computed once
+        if self._basis is not None:
+            return self._basis
+        return self.eigenvalues, psi / self.unit_scale
 
     def _normalized(self, psi: np.ndarray) -> np.ndarray:
         """Rows scaled to unit norm with ``units="normalized"`` (in place), else ``psi``.
