@@ -91,6 +91,39 @@ def test_trimmed_rms_sets_aside_the_worst_fitting_pairs():
             trimmed_rms(r, bad)
 
 
+def test_log_ratio_residuals_measure_a_multiplicative_distortion():
+    """log(d_X / d_Y) over the off-diagonal pairs: a uniform scaling by s gives |log s| on every
+    pair (the additive residuals grow with the distance instead); swapping the shapes flips
+    the sign; ranking_value is half its trimmed RMS; a zero distance needs a floor."""
+    from gromov.gh import RANK_LOG_FLOOR, ranking_value
+    from gromov.gmds import log_ratio_residuals, trimmed_rms
+
+    rng = np.random.default_rng(1)
+    pts = rng.normal(size=(30, 3))
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    r = log_ratio_residuals(d, 2.0 * d)
+    assert r.shape == (30 * 29,) and np.allclose(r, -np.log(2.0))
+    assert ranking_value(d, 2.0 * d, 2.0 * d.max(), "log") == pytest.approx(
+        0.5 * trimmed_rms(log_ratio_residuals(d, 2.0 * d, RANK_LOG_FLOOR * 2.0 * d.max())))
+    assert ranking_value(d, 2.0 * d, 1e-6, "log") == pytest.approx(0.5 * np.log(2.0))   # floor ~ 0
+    diff = (d - 2.0 * d)[~np.eye(30, dtype=bool)]
+    assert np.std(np.abs(diff)) > 0.2 * np.mean(np.abs(diff))   # additive: not uniform
+    assert np.allclose(log_ratio_residuals(2.0 * d, d), -r)
+    e = d + 0.05 * rng.normal(size=d.shape)
+    e = np.abs(e + e.T) / 2
+    assert ranking_value(d, e, d.max(), "difference") == pytest.approx(
+        0.5 * trimmed_rms((d - e)[~np.eye(30, dtype=bool)]) / d.max())
+    d0 = d.copy()
+    d0[0, 1] = d0[1, 0] = 0.0               # two points that coincide
+    with pytest.raises(ValueError, match="floor"):
+        log_ratio_residuals(d0, d)
+    assert np.isfinite(log_ratio_residuals(d0, d, 0.01)).all()
+    with pytest.raises(ValueError, match="square"):
+        log_ratio_residuals(d[:3], d[:3])
+    with pytest.raises(ValueError, match="rank_residual"):
+        ranking_value(d, d, 1.0, "ratio")
+
+
 def test_sample_trimmed_rms_sets_aside_whole_samples():
     from gromov.gmds import sample_trimmed_rms, trimmed_rms
 
@@ -569,6 +602,17 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     want = 0.5 * trimmed_rms((ex - ey)[~np.eye(len(ex), dtype=bool)]) / max(f.diameter for f in fine)
     assert half.ranking_distance == pytest.approx(want, rel=1e-3)
     assert abs(half.ranking_distance - half.relative_trimmed) > 1e-3 * half.relative_trimmed
+    # rank_residual="log": the same blocks' log ratios; the correspondence does not change
+    logged = match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=0.5, rank_residual="log")
+    assert logged.distance == half.distance and np.array_equal(logged.x_to_y_face, half.x_to_y_face)
+    from gromov.gh import RANK_LOG_FLOOR
+    from gromov.gmds import log_ratio_residuals
+
+    diam = max(f.diameter for f in fine)
+    want = 0.5 * trimmed_rms(log_ratio_residuals(ex, ey, RANK_LOG_FLOOR * diam))
+    assert logged.ranking_distance == pytest.approx(want, rel=1e-3)
+    with pytest.raises(ValueError, match="rank_residual"):
+        match(x, y, n_samples=30, rank_residual="logratio")
     geo = match(a, b, "geodesic", n_samples=20, resolution=None, rank_tau_scale=0.5)
     assert geo.ranking_distance == geo.relative_trimmed
     # the paper's graph diffusion, behind the hole-filling wrapper: not a heat kernel either

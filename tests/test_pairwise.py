@@ -137,9 +137,10 @@ def test_prepare_warns_when_the_matrices_will_not_fit(monkeypatch):
 
 def test_recognition_ranks_by_the_distortion_at_the_finer_scale():
     """gh_matrix's trimmed matrix holds each correspondence's ranking distance (heat kernel:
-    measured at rank_tau_scale x tau, default RANK_TAU_SCALE); None ranks in the match's own
-    metric; the GH estimates are the same either way."""
-    from gromov.gh import RANK_TAU_SCALE
+    measured at rank_tau_scale x tau, default RANK_TAU_SCALE, of the log distance ratios,
+    default RANK_RESIDUAL); None and "difference" rank as before session 16 (relative_trimmed);
+    the GH estimates are the same either way."""
+    from gromov.gh import RANK_RESIDUAL, RANK_TAU_SCALE
 
     shapes, labels = _sheets()
     shapes = shapes[:2] + shapes[3:5]
@@ -147,14 +148,20 @@ def test_recognition_ranks_by_the_distortion_at_the_finer_scale():
     r = gh_matrix(shapes, "diffusion", n_samples=20, resolution=None, metric_options=opts,
                   jobs=2, keep=[(0, 2)])
     old = gh_matrix(shapes, "diffusion", n_samples=20, resolution=None, metric_options=opts,
-                    jobs=1, rank_tau_scale=None)
+                    jobs=1, rank_tau_scale=None, rank_residual="difference")
     assert r.rank_tau_scale == RANK_TAU_SCALE == 0.5 and old.rank_tau_scale is None
+    assert r.rank_residual == RANK_RESIDUAL == "log" and old.rank_residual == "difference"
     np.testing.assert_array_equal(r.distance, old.distance)
     from gromov import match
 
     one = match(shapes[0], shapes[2], "diffusion", n_samples=20, resolution=None, metric_options=opts,
-                orientation="ignore", rank_tau_scale=0.5)
+                orientation="ignore", rank_tau_scale=0.5, rank_residual="log")
     assert r.trimmed[0, 2] == one.ranking_distance and r.relative[0, 2] == one.relative_distance
+    diff = match(shapes[0], shapes[2], "diffusion", n_samples=20, resolution=None, metric_options=opts,
+                 orientation="ignore", rank_tau_scale=0.5)   # match's default: differences
+    assert diff.distance == one.distance and diff.ranking_distance != one.ranking_distance
+    with pytest.raises(ValueError, match="rank_residual"):
+        gh_matrix(shapes, "diffusion", n_samples=20, resolution=None, rank_residual="ratio")
     assert old.trimmed[0, 2] == one.relative_trimmed != one.ranking_distance
     kept = r.results[0, 2]          # the kept map is measured the same way
     assert kept.ranking_distance != kept.relative_trimmed

@@ -116,13 +116,19 @@ def _rank_tau_scale(text: str) -> float | None:
     return None if v == 1.0 else v
 
 
-def _add_rank_tau_arg(p: argparse.ArgumentParser) -> None:
+def _add_rank_args(p: argparse.ArgumentParser) -> None:
     from .gh import RANK_TAU_SCALE
 
     p.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
                    help=f"heat-kernel diffusion: the trimmed ranking measures each correspondence "
                         f"with the heat distance at S times the diffusion time it was found at "
                         f"(default {RANK_TAU_SCALE:g}: a finer scale; 1: the same metric)")
+    from .gh import RANK_RESIDUAL, RANK_RESIDUALS
+
+    p.add_argument("--rank-residual", choices=RANK_RESIDUALS, default=RANK_RESIDUAL,
+                   help=f"the trimmed ranking summarises the log ratios of corresponding distances "
+                        f"(log: a multiplicative distortion) or their differences over the larger "
+                        f"diameter (difference: before session 17; default {RANK_RESIDUAL})")
 
 
 def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
@@ -427,7 +433,8 @@ def cmd_pairwise(args) -> int:
     t = time.perf_counter()
     r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
                   metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
-                  progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale)
+                  progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
+                  rank_residual=args.rank_residual)
     seconds = time.perf_counter() - t
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
@@ -436,6 +443,7 @@ def cmd_pairwise(args) -> int:
     result = {"files": names, "metric": args.metric, "metric_options": options,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
               "ranked_by": args.rank_by, "rank_tau_scale": r.rank_tau_scale,
+              "rank_residual": r.rank_residual,
               "distance": r.distance.tolist(), "relative_distance": r.relative.tolist(),
               "relative_trimmed_distance": r.trimmed.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
@@ -464,6 +472,7 @@ def cmd_pairwise(args) -> int:
                                 eer=nan if result.get("eer") is None else result["eer"],
                                 metric=args.metric, options=json.dumps(options),
                                 rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
+                                rank_residual=r.rank_residual,
                                 n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
         from .experiments.recognition import plot_mds
@@ -621,7 +630,8 @@ def cmd_reproduce(args) -> int:
     r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
                   command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
                   classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by,
-                  rank_tau_scale=args.rank_tau_scale, pose_stretch=args.pose_stretch)
+                  rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual,
+                  pose_stretch=args.pose_stretch)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -638,11 +648,15 @@ def cmd_reproduce(args) -> int:
     other = other_classes(r)
     if other:
         print(f"  classes {', '.join(other)}: the paper's numbers are for {', '.join(PAPER_CLASSES)}")
-    rank = "the trimmed distortion" if r["params"].get("rank_by") == "trimmed" else "the GH estimate"
-    scale = r["params"].get("rank_tau_scale")
-    if r["params"].get("rank_by") == "trimmed" and scale is not None:
-        rank += f" (diffusion: measured at {scale:g} x the diffusion time, --rank-tau-scale)"
-    print(f"  EERs rank pairs by {rank} (--rank-by); the other's EER in brackets")
+    params = r["params"]
+    rank = ("the trimmed distortion" if params.get("rank_by") == "trimmed" else "the GH estimate") + " (--rank-by)"
+    if params.get("rank_by") == "trimmed":
+        rank += (" of the log distance ratios" if params.get("rank_residual") == "log"
+                 else " of the distance differences") + " (--rank-residual)"
+        if params.get("rank_tau_scale") is not None:
+            rank += (f", for diffusion measured at {params['rank_tau_scale']:g} x the diffusion time "
+                     f"(--rank-tau-scale)")
+    print(f"  EERs rank pairs by {rank}; the other's EER in brackets")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
@@ -733,7 +747,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
                    help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
                         "correspondence (default, as gromov reproduce) or by the GH estimate")
-    _add_rank_tau_arg(q)
+    _add_rank_args(q)
     q.add_argument("--out", default=None, metavar="FILE",
                    help=".npz with all matrices, or .csv with the matrix the results rank by "
                         "(named in its first cell)")
@@ -782,7 +796,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="recognition ranks pairs by the trimmed distortion of their GH correspondence "
                         "(RMS of its best-fitting 80%% of pairs; default) or by the GH estimate; "
                         "results.json has both EERs")
-    _add_rank_tau_arg(q)
+    _add_rank_args(q)
     q.add_argument("--pose-stretch", type=float, default=0.0, metavar="S",
                    help="synthetic set only: stretch its poses so that they are not isometric, as "
                         "TOSCA's are not (0.1: geodesic distances change by 2.4-6.5%%; default 0)")

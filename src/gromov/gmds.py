@@ -37,7 +37,7 @@ from .errors import MetricError
 from .mesh import Mesh
 
 __all__ = ["SurfaceDistance", "SurfacePoints", "parse_norm", "norm_value", "trimmed_rms", "TRIM_KEEP",
-           "sample_trimmed_rms", "SymmetricGMDS"]
+           "log_ratio_residuals", "sample_trimmed_rms", "SymmetricGMDS"]
 
 logger = logging.getLogger(__name__)
 
@@ -144,6 +144,36 @@ def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
     idx = np.sort(np.argsort(rows, kind="stable")[:h])
     sub = e[np.ix_(idx, idx)][~np.eye(h, dtype=bool)]
     return float(np.sqrt(np.mean(sub**2)))
+
+def log_ratio_residuals(dx: np.ndarray, dy: np.ndarray, floor: float = 0.0) -> np.ndarray:
+    r"""Multiplicative residuals of a correspondence: the off-diagonal entries of
+    :math:`\log\big((d_X + \epsilon) / (d_Y + \epsilon)\big)`, with :math:`\epsilon` = ``floor``.
+
+    ``dx`` and ``dy`` are the square matrices of distances between corresponding points
+    (e.g. the blocks of :meth:`SymmetricGMDS.blocks`). Where :math:`d_X - d_Y` measures the
+    *additive* distortion (its largest value, :math:`\operatorname{dis} C`, bounds the
+    Gromov-Hausdorff distance: :math:`d_{GH} \le \frac12 \operatorname{dis} C`), the log
+    ratio measures the *multiplicative* one: for a bijection :math:`f`, its largest absolute
+    value over all pairs is :math:`\max(\log \operatorname{dil} f, \log \operatorname{dil}
+    f^{-1})`, at least half of the quantity :math:`\log \operatorname{dil} f + \log
+    \operatorname{dil} f^{-1}` that Gromov's Lipschitz distance between metric spaces
+    minimises (Gromov, *Metric Structures for Riemannian and Non-Riemannian Spaces*, 1999,
+    §3.A; Burago, Burago & Ivanov, *A Course in Metric Geometry*, 2001, §7.2). A pair of
+    points one unit apart that should be two apart
+    counts as much as one ten units apart that should be twenty. ``floor`` (>= 0, in the
+    distances' units) keeps the ratio finite where two points coincide.
+    """
+    dx, dy = np.asarray(dx, dtype=float), np.asarray(dy, dtype=float)
+    if dx.ndim != 2 or dx.shape[0] != dx.shape[1] or dx.shape != dy.shape:
+        raise ValueError(f"dx and dy must be square matrices of one shape, got {dx.shape} and {dy.shape}")
+    if not (np.isfinite(floor) and floor >= 0):
+        raise ValueError(f"floor must be a finite number >= 0, got {floor!r}")
+    off = ~np.eye(len(dx), dtype=bool)
+    a, b = dx[off] + floor, dy[off] + floor
+    if np.any(a <= 0) or np.any(b <= 0):
+        raise ValueError("a distance between two different points is zero: give a floor > 0")
+    return np.log(a / b)
+
 
 @dataclass(frozen=True, eq=False)
 class SurfacePoints:

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gh import DEFAULT_COARSE_STAGES, RANK_TAU_SCALE, ShapeMetric, match, match_options_for, search_subsets
+from ..gh import (DEFAULT_COARSE_STAGES, RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, check_rank_residual, match,
+                  match_options_for, search_subsets)
 
 __all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
@@ -33,9 +34,10 @@ class PairwiseGH:
     """Symmetric ``(n, n)`` matrices of GH estimates (``distance``) and relative ones.
 
     ``trimmed``: what recognition ranks shapes by, the same correspondences' trimmed
-    distortion relative like ``relative`` (:attr:`gromov.MatchResult.ranking_distance`): with
-    the heat-kernel diffusion metric and ``rank_tau_scale``, measured at that times the
-    diffusion time.
+    distortion (:attr:`gromov.MatchResult.ranking_distance`): of the log ratios of the
+    distances (``rank_residual="log"``, dimensionless) or of their differences over the larger
+    diameter (``"difference"``, relative like ``relative``); with the heat-kernel diffusion
+    metric and ``rank_tau_scale``, measured at that times the diffusion time.
     """
 
     distance: np.ndarray
@@ -48,6 +50,7 @@ class PairwiseGH:
     """``{(i, j): MatchResult}`` for the pairs asked for with ``keep`` (``i < j``)."""
     trimmed: np.ndarray | None = None
     rank_tau_scale: float | None = None
+    rank_residual: str = "difference"
 
 
 def _pair(ij):
@@ -210,7 +213,7 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
               keep=(), known: dict | None = None, rank_tau_scale: float | None = RANK_TAU_SCALE,
-              **match_options) -> PairwiseGH:
+              rank_residual: str = RANK_RESIDUAL, **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -239,6 +242,10 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         the heat distance at this times the diffusion time (:func:`gromov.match`'s
         ``rank_tau_scale``); None, or another metric: in the metric of the match. The GH
         estimates (``distance``, ``relative``) and the correspondences are the same either way.
+    rank_residual : {"log", "difference"}, default RANK_RESIDUAL ("log")
+        How ``trimmed`` summarises each correspondence's residuals (:func:`gromov.match`'s
+        ``rank_residual``): the log ratios of corresponding distances (a multiplicative
+        distortion) or their differences over the larger diameter (as before session 17).
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``...).
 
@@ -252,13 +259,14 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         ``results`` holds (where the map found reverses the orientation, ``match`` runs again
         with ``orientation="prefer"``, whose first steps are the same run). ``trimmed`` holds
         the trimmed distortion of the same correspondence (:func:`gromov.gmds.trimmed_rms`),
-        measured as ``rank_tau_scale`` says.
+        measured as ``rank_tau_scale`` and ``rank_residual`` say.
     """
     shapes = list(shapes)
     if len(shapes) < 2:
         raise ValueError(f"need at least two shapes, got {len(shapes)}")
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
+    check_rank_residual(rank_residual)
     t0 = time.perf_counter()
     prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
                        metric_options=metric_options, progress=progress,
@@ -282,7 +290,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     trim = np.zeros((n, n))
     kept = {}
     runs = _run(prepared, pairs, keep, jobs, progress, f"{metric} GH pairs",
-                dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale, **match_options),
+                dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale,
+                     rank_residual=rank_residual, **match_options),
                 matrix=True) if pairs else []
     for (i, j), (d, r, t, full) in zip(pairs + list(known), list(runs) + list(known.values())):
         if full is not None and (i, j) not in keep:
@@ -293,4 +302,4 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         if full is not None:
             kept[i, j] = full
     return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim,
-                      rank_tau_scale)
+                      rank_tau_scale, rank_residual)

@@ -600,6 +600,10 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
                    "which sets aside the pairs a local change of topology altered (our choice, "
                    "not the paper's: made on the synthetic set and on TOSCA classes the paper did "
                    "not use). The last column ranks by the GH estimate itself (½ RMS distortion)")
+            if _get(results, "params", "rank_residual") == "log":
+                how = how.replace("the RMS distortion of its best-fitting 80% of sample pairs",
+                                  "the RMS of the log ratios of corresponding distances over its "
+                                  "best-fitting 80% of sample pairs (a multiplicative distortion)", 1)
             scale = _get(results, "params", "rank_tau_scale")
             if scale is not None:
                 how = how.replace(" (our choice", f"; for the diffusion metric measured with the heat "

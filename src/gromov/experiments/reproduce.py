@@ -49,7 +49,7 @@ import numpy as np
 
 from .. import perturb as _perturb
 from ..errors import GromovError
-from ..gh import RANK_TAU_SCALE, ShapeMetric, check_rank_tau_scale
+from ..gh import RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, check_rank_residual, check_rank_tau_scale
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..metrics.diffusion import correspondence_options
@@ -111,6 +111,9 @@ class Settings:
         The trimmed ranking measures each diffusion correspondence with the heat distance at
         this times the diffusion time (:data:`gromov.gh.RANK_TAU_SCALE`; None: in the metric
         of the match).
+    rank_residual : {"log", "difference"}
+        The trimmed ranking's residuals: log ratios of corresponding distances or their
+        differences (:data:`gromov.gh.RANK_RESIDUAL`).
     """
 
     dataset: str
@@ -125,6 +128,7 @@ class Settings:
     rank_by: str = "trimmed"
     correspondence_options: dict = field(default_factory=lambda: {m: {} for m in METRICS})
     rank_tau_scale: float | None = RANK_TAU_SCALE
+    rank_residual: str = RANK_RESIDUAL
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -448,7 +452,8 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
                     shapes.diameters.setdefault((s.cls, s.pose), sm.diameter)
         timings[f"{name}.{metric}.metrics_s"] = round(time.perf_counter() - t, 2)
         r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
-                      progress=not quiet, keep=keep, known=known, rank_tau_scale=st.rank_tau_scale)
+                      progress=not quiet, keep=keep, known=known, rank_tau_scale=st.rank_tau_scale,
+                      rank_residual=st.rank_residual)
         for i in range(len(items)):
             for j in range(i + 1, len(items)):
                 if items[i].label in shapes.shared and items[j].label in shapes.shared:
@@ -675,7 +680,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
               seed: int = 0, quiet: bool = False, command: str | None = None,
               diffusion: dict | None = None, weld_join: str = "pinch", classes: dict | None = None,
               topkids: bool = True, rank_by: str = "trimmed",
-              rank_tau_scale: float | None = RANK_TAU_SCALE, pose_stretch: float = 0.0) -> dict:
+              rank_tau_scale: float | None = RANK_TAU_SCALE, rank_residual: str = RANK_RESIDUAL,
+              pose_stretch: float = 0.0) -> dict:
     """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
 
     Parameters
@@ -727,6 +733,12 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         heat distance at this times the diffusion time (:func:`gromov.match`'s
         ``rank_tau_scale``); None: in the metric of the match (as before session 16). The
         correspondences, GH estimates and d(C, C0) do not depend on it. Recorded in ``params``.
+    rank_residual : {"log", "difference"}, default RANK_RESIDUAL ("log")
+        The trimmed distortion summarises the log ratios of corresponding distances (a
+        multiplicative distortion, :func:`gromov.gmds.log_ratio_residuals`) or, as before
+        session 17, their differences over the larger diameter (:func:`gromov.match`'s
+        ``rank_residual``). Like ``rank_tau_scale`` it changes only the ranking. Recorded in
+        ``params``.
     pose_stretch : float, default 0
         Synthetic set only: ``Synthetic(pose_stretch=...)``, poses as far from isometric as
         TOSCA's (0.1: geodesic distances change by 2.4-6.5 %) -- a validation set on which a
@@ -755,7 +767,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     st = settings_for(dataset, quick, seed=seed, classes=classes, topkids=topkids)
     if rank_by not in RANK_BY:
         raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
-    st = replace(st, rank_by=rank_by, rank_tau_scale=check_rank_tau_scale(rank_tau_scale))
+    st = replace(st, rank_by=rank_by, rank_tau_scale=check_rank_tau_scale(rank_tau_scale),
+                 rank_residual=check_rank_residual(rank_residual))
     if pose_stretch and data is not None:
         raise ValueError("pose_stretch stretches the synthetic set's poses; TOSCA's are as scanned")
     if pose_stretch:
