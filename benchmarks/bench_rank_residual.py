@@ -60,16 +60,24 @@ def margin(D: np.ndarray, labels: np.ndarray) -> float:
     return float(D[~same].min() / D[same & off].max())
 
 
+def _keep_working(s) -> None:
+    """Make ``s.locate`` leave a result's images on the working mesh (``match`` carries them to
+    the input mesh by projection, which need not land on the same point): the images are then
+    the very points ``match`` measured."""
+    def locate(pts):
+        return pts.face, pts.bary, pts.vertex(s.mesh.faces)
+    s.locate = locate
+
+
 def _pair(ij):
     i, j = ij
     x, y = _SHAPES[i], _SHAPES[j]
     heat = x.ranking_surface(RANK_TAU_SCALE) is not None
     r = match(x, y, x.metric, n_samples=_N, seed=0, orientation="ignore",
               rank_tau_scale=RANK_TAU_SCALE if heat else None, rank_residual="log")
-    # the shapes are their own working meshes here: the result's faces are working faces
-    ip = SurfacePoints(r.x_to_y_face, r.x_to_y_bary)
+    ip = SurfacePoints(r.x_to_y_face, r.x_to_y_bary)   # on the working meshes (_keep_working)
     iq = SurfacePoints(r.y_to_x_face, r.y_to_x_bary)
-    P, Q = r.x_samples, r.y_samples
+    P, Q = x.samples(_N, 0), y.samples(_N, 0)   # match's samples (working ids)
     out = {}
     for scale in ((1.0, RANK_TAU_SCALE) if heat else (1.0,)):
         if scale == 1.0:
@@ -80,7 +88,7 @@ def _pair(ij):
         for res in RESIDUALS:
             out[f"{res} @{scale:g}"] = ranking_value(ex, ey, max(dx, dy), res)
     last = f"log @{RANK_TAU_SCALE if heat else 1.0:g}"
-    if not np.isclose(out[last], r.ranking_distance, rtol=1e-6):   # what match ranked by
+    if not np.isclose(out[last], r.ranking_distance, rtol=1e-9):   # what match ranked by
         raise AssertionError(f"{last}: {out[last]} vs match's {r.ranking_distance}")
     return out
 
@@ -134,6 +142,8 @@ def main(argv=None):
                     opts.setdefault("fill_holes", DIFFUSION_FILL_HOLES)
                 _SHAPES[:] = prepare([s.mesh for s in items], metric, n_samples=_N, seed=0, resolution=None,
                                      metric_options=opts, rank_tau_scale=RANK_TAU_SCALE)
+                for s in _SHAPES:
+                    _keep_working(s)
                 with ProcessPoolExecutor(args.jobs, mp_context=mp.get_context("fork"),
                                          initializer=_one_thread_per_worker) as pool:
                     rows = list(pool.map(_pair, pairs, chunksize=8))

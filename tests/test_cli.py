@@ -346,7 +346,12 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     rel = np.array(res["relative_distance"])
     trim = np.array(res["relative_trimmed_distance"])
     assert np.array_equal(rel, rel.T) and np.all(np.diag(rel) == 0)
-    assert np.all(trim <= rel + 1e-15)
+    assert res["rank_residual"] == "log" and np.array_equal(trim, trim.T)   # log distance ratios
+    assert main([*argv, "--json", "--rank-residual", "difference"]) == 0     # differences / diameter
+    diff = json.loads(capsys.readouterr().out)
+    assert diff["rank_residual"] == "difference" and diff["relative_distance"] == res["relative_distance"]
+    assert np.all(np.array(diff["relative_trimmed_distance"]) <= rel + 1e-15)   # trimmed <= RMS
+    assert not np.allclose(diff["relative_trimmed_distance"], trim)
     assert rel[0, 2] < 0.01 and rel[1, 3] < 1e-3     # isometric; rigid copy
     assert min(rel[0, 1], rel[0, 3], rel[2, 1], rel[2, 3]) > 5 * max(rel[0, 2], rel[1, 3])
     z = np.load(npz)

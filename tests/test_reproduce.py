@@ -38,11 +38,10 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
             # recognition ranks by the trimmed distortion by default; both EERs are recorded
             t = np.array(rec[m]["trimmed"])
             assert t.shape == (n, n) and np.allclose(t, t.T) and np.all(t[~np.eye(n, dtype=bool)] > 0)
-            if m == "geodesic":   # diffusion measures it at a finer scale (rank_tau_scale)
-                assert np.all(t <= d + 1e-9)
+            # (of log distance ratios, rank_residual: dimensionless, not comparable with d)
             assert rec[m]["ranked_by"] == "trimmed" and r["params"]["rank_by"] == "trimmed"
             assert rec[m]["eer"] == rec[m]["eer_trimmed"] and 0.0 <= rec[m]["eer_gh"] <= 1.0
-    assert r["params"]["rank_tau_scale"] == 0.5
+    assert r["params"]["rank_tau_scale"] == 0.5 and r["params"]["rank_residual"] == "log"
     # the perturbations did what they say: welds lower the Euler characteristic, holes add loops
     shapes = r["recognition"]["weld"]["shapes"]
     welded = [s for label, s in shapes.items() if "+weld" in label]
@@ -61,6 +60,7 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
     assert "data:image/png;base64," in html and "13.5" in html   # the paper's geodesic EER beside ours
     assert "trimmed distortion" in html and "EER, GH estimate" in html
     assert "heat distance at 0.5 × the diffusion time" in html   # what the diffusion ranking measures
+    assert "log ratios of corresponding distances" in html       # and how it summarises residuals
 
 
 def test_quick_run_correspondence_is_measured(quick_run):
@@ -222,6 +222,8 @@ def test_diffusion_kernel_option(quick_run, tmp_path, capsys):
     for bad in (0, -0.5, float("nan"), "0.5"):
         with pytest.raises(ValueError, match="rank_tau_scale must be"):
             reproduce(None, tmp_path / "o", quick=True, rank_tau_scale=bad)
+    with pytest.raises(ValueError, match="rank_residual must be one of"):
+        reproduce(None, tmp_path / "o", quick=True, rank_residual="ratio")
     with pytest.raises(ValueError, match="pose_stretch must be a number"):
         reproduce(None, tmp_path / "o", quick=True, pose_stretch=0.5)
     (tmp_path / "data" / "tosca").mkdir(parents=True)
@@ -253,6 +255,12 @@ def test_rank_by_option_reaches_reproduce(monkeypatch, tmp_path):
         with pytest.raises(Stop):
             main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
         assert seen["rank_tau_scale"] == want
+    for argv, want in (([], "log"), (["--rank-residual", "difference"], "difference")):
+        with pytest.raises(Stop):
+            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
+        assert seen["rank_residual"] == want
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--rank-residual", "ratio"])
     for argv, want in (([], 0.0), (["--pose-stretch", "0.1"], 0.1)):
         with pytest.raises(Stop):
             main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)

@@ -1115,12 +1115,14 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     dis = norm_value(r, p)
     d_l2, d_linf, d_trim = norm_value(r, 2.0), norm_value(r, np.inf), trimmed_rms(r)
     diam = max(sx.diameter, sy.diameter)
-    ranking = ranking_value(dx, dy, diam, rank_residual)   # "difference": relative_trimmed
+    mx = my = None
     if rank_tau_scale is not None:
         mx, my = sx.ranking_surface(rank_tau_scale), sy.ranking_surface(rank_tau_scale)
-        if mx is not None and my is not None:
-            ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(img_p, img_q)
-            ranking = ranking_value(ex, ey, max(mx[1], my[1]), rank_residual)
+    if mx is not None and my is not None:   # the same correspondence in the finer heat metric
+        ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(img_p, img_q)
+        ranking = ranking_value(ex, ey, max(mx[1], my[1]), rank_residual)
+    else:                                   # in the match's metric ("difference": relative_trimmed)
+        ranking = ranking_value(dx, dy, diam, rank_residual)
     xy_face, xy_bary, xy_vertex = sy.locate(img_p)
     yx_face, yx_bary, yx_vertex = sx.locate(img_q)
     return MatchResult(
