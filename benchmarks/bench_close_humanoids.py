@@ -13,7 +13,8 @@ the same welds). For each blend, the GH matrices of the heat-kernel diffusion me
 heat distances and with normalised heat distributions are computed (``gh_matrix``), and
 pairs are ranked by each and by their elementwise geometric mean (the trimmed distortions
 measured at ``--rank-tau-scale`` times each metric's diffusion time, as ``gh_matrix`` does by
-default since session 16; ``--rank-tau-scale 1`` for the match's own metric, as before).
+default since session 16; ``--rank-tau-scale 1`` for the match's own metric, as before; of the
+log distance ratios as since session 17, ``--rank-residual difference`` for their differences).
 ``--stretch`` builds the people with non-isometric poses (``Synthetic(pose_stretch=...)``), as
 TOSCA's are. Printed per ranking: the
 equal error rate and the *margin* (smallest different-class over largest same-class distance;
@@ -35,7 +36,7 @@ from gromov.experiments.pairwise import gh_matrix
 from gromov.experiments.recognition import equal_error_rate
 from gromov.experiments.reproduce import _Shapes
 from gromov.experiments.synthetic import Synthetic
-from gromov.gh import RANK_TAU_SCALE
+from gromov.gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
 
 OPTIONS = {"raw": {"units": "raw"}, "normalized": {"units": "normalized"}}
 
@@ -58,6 +59,8 @@ def main(argv=None):
     ap.add_argument("--stretch", type=float, default=0.0,
                     help="Synthetic(pose_stretch=...): non-isometric poses, as TOSCA's (0.1: geodesic "
                          "distances change by 2.4-6.5%%, TOSCA's people 2.5-4.5%%)")
+    ap.add_argument("--rank-residual", choices=RANK_RESIDUALS, default=RANK_RESIDUAL,
+                    help="the trimmed ranking's residuals: log distance ratios (default) or differences")
     ap.add_argument("--rank-tau-scale", type=float, default=RANK_TAU_SCALE,
                     help="the trimmed ranking measures each correspondence at this times the "
                          "diffusion time (default the library's; 1: in the metric of the match)")
@@ -69,6 +72,7 @@ def main(argv=None):
         options["raw"]["tau"] = args.raw_tau
     out = {"date": time.strftime("%Y-%m-%d"), "samples": args.samples, "deformations": args.deformations,
            "pose_stretch": args.stretch, "rank_tau_scale": rank_scale,
+           "rank_residual": args.rank_residual,
            "options": options, "blends": {}}
     t0 = time.perf_counter()
     for blend in (float(b) for b in args.blends.split(",")):
@@ -80,7 +84,8 @@ def main(argv=None):
         mats = {}
         for name, opts in options.items():
             r = gh_matrix([s.mesh for s in items], "diffusion", n_samples=args.samples, resolution=None,
-                          metric_options=opts, jobs=args.jobs, rank_tau_scale=rank_scale)
+                          metric_options=opts, jobs=args.jobs, rank_tau_scale=rank_scale,
+                          rank_residual=args.rank_residual)
             mats[name] = {"trimmed": r.trimmed, "gh": r.relative}
         mats["geometric mean"] = {k: np.sqrt(mats["raw"][k] * mats["normalized"][k]) for k in ("trimmed", "gh")}
         row = {}

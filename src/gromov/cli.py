@@ -117,14 +117,14 @@ def _rank_tau_scale(text: str) -> float | None:
 
 
 def _add_rank_args(p: argparse.ArgumentParser) -> None:
-    from .gh import RANK_TAU_SCALE
+    """``--rank-tau-scale`` and ``--rank-residual`` (how recognition ranks), for ``pairwise``
+    and ``reproduce``."""
+    from .gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
 
     p.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
                    help=f"heat-kernel diffusion: the trimmed ranking measures each correspondence "
                         f"with the heat distance at S times the diffusion time it was found at "
                         f"(default {RANK_TAU_SCALE:g}: a finer scale; 1: the same metric)")
-    from .gh import RANK_RESIDUAL, RANK_RESIDUALS
-
     p.add_argument("--rank-residual", choices=RANK_RESIDUALS, default=RANK_RESIDUAL,
                    help=f"the trimmed ranking summarises the log ratios of corresponding distances "
                         f"(log: a multiplicative distortion) or their differences over the larger "
