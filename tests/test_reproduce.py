@@ -245,29 +245,19 @@ def test_rank_by_option_reaches_reproduce(monkeypatch, tmp_path):
         raise Stop
 
     monkeypatch.setattr(rep, "reproduce", fake)
-    for argv, want in (([], "trimmed"), (["--rank-by", "gh"], "gh")):
+    cases = [("rank_by", [], "trimmed"), ("rank_by", ["--rank-by", "gh"], "gh"),
+             ("rank_tau_scale", [], 0.5), ("rank_tau_scale", ["--rank-tau-scale", "1"], None),
+             ("rank_tau_scale", ["--rank-tau-scale", "0.25"], 0.25),
+             ("rank_residual", [], "log"), ("rank_residual", ["--rank-residual", "difference"], "difference"),
+             ("pose_stretch", [], 0.0), ("pose_stretch", ["--pose-stretch", "0.1"], 0.1)]
+    for key, argv, want in cases:
         with pytest.raises(Stop):
             main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
-        assert seen["rank_by"] == want
-    with pytest.raises(SystemExit):
-        main(["reproduce", "--rank-by", "median"])
-    for argv, want in (([], 0.5), (["--rank-tau-scale", "1"], None), (["--rank-tau-scale", "0.25"], 0.25)):
-        with pytest.raises(Stop):
-            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
-        assert seen["rank_tau_scale"] == want
-    for argv, want in (([], "log"), (["--rank-residual", "difference"], "difference")):
-        with pytest.raises(Stop):
-            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
-        assert seen["rank_residual"] == want
-    with pytest.raises(SystemExit):
-        main(["reproduce", "--rank-residual", "ratio"])
-    for argv, want in (([], 0.0), (["--pose-stretch", "0.1"], 0.1)):
-        with pytest.raises(Stop):
-            main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
-        assert seen["pose_stretch"] == want
-    for bad in ("0", "-1", "x", "inf"):
+        assert seen[key] == want, (key, argv)
+    for bad in (["--rank-by", "median"], ["--rank-residual", "ratio"],
+                *(["--rank-tau-scale", v] for v in ("0", "-1", "x", "inf"))):
         with pytest.raises(SystemExit):
-            main(["reproduce", "--rank-tau-scale", bad])
+            main(["reproduce", *bad])
 
 
 def test_weld_join_option(tmp_path, capsys):
