@@ -124,6 +124,33 @@ def test_log_ratio_residuals_measure_a_multiplicative_distortion():
         ranking_value(d, d, 1.0, "ratio")
 
 
+def test_locate_keeps_points_on_an_unsimplified_input():
+    """A point inside a long thin triangle whose nearest vertices belong to another sheet: the
+    projection among the faces around the nearest vertices misses it (distance 0.5), so a
+    shape used at its own resolution keeps its points as they are (same face, same bary)."""
+    from gromov._project import project_points
+    from gromov.gmds import SurfacePoints
+
+    big = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [5.0, -8.0, 0.0]]
+    patch = [[4.5 + dx, -0.3 + dy, 0.5] for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1))]
+    mesh = Mesh(np.array(big + patch), np.array([[0, 2, 1], [3, 4, 5], [4, 6, 5]]))
+    s = ShapeMetric(mesh, "euclidean", resolution=None)
+    bary = np.array([[0.47, 0.06, 0.47]])   # inside the big triangle, near its long edge (5, -0.48, 0)
+    pts = SurfacePoints(np.array([0]), bary)
+    pos = pts.positions(mesh.vertices, mesh.faces)
+    _, _, dist = project_points(pos, mesh)
+    assert dist[0] > 0.4                     # what projecting would have done
+    face, b, vertex = s.locate(pts)
+    assert face[0] == 0 and np.allclose(b, bary) and vertex[0] == 0
+    # a simplified working mesh is not the input: its points are projected (onto the input)
+    grid_mesh = rolled_grid(21, 11)
+    t = ShapeMetric(grid_mesh, "euclidean", resolution=100)
+    assert t.mesh.n_vertices < grid_mesh.n_vertices
+    f, bb, _ = t.locate(SurfacePoints(np.array([0]), np.array([[1.0, 0.0, 0.0]])))
+    on = SurfacePoints(f, bb).positions(grid_mesh.vertices, grid_mesh.faces)
+    assert np.allclose(on, t.mesh.vertices[t.mesh.faces[0, 0]])
+
+
 def test_sample_trimmed_rms_sets_aside_whole_samples():
     from gromov.gmds import sample_trimmed_rms, trimmed_rms
 

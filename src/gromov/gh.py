@@ -135,6 +135,7 @@ class ShapeMetric:
         self._descriptors: np.ndarray | None = None
         self._diameter: float | None = None
         self._tree = None
+        self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
         self._symmetry: dict = {}
         self._ranking: dict = {}
@@ -247,13 +248,28 @@ class ShapeMetric:
         return self.samples(min(int(k), self.mesh.n_vertices), 0)
 
     def locate(self, pts: SurfacePoints):
-        """Carry points on the working mesh to the input mesh: (face, bary, nearest vertex) there."""
-        pos = pts.positions(self.mesh.vertices, self.mesh.faces)
-        if self._tree is None:  # per shape, not per match
-            from scipy.spatial import cKDTree
+        """Carry points on the working mesh to the input mesh: (face, bary, nearest vertex) there.
 
-            self._tree = cKDTree(self.input.vertices)
-        face, bary, _ = project_points(pos, self.input, tree=self._tree)
+        Where the working mesh is the input mesh itself (not simplified: same vertices and
+        faces), the points are kept as they are; else they are projected onto the input
+        (:func:`gromov._project.project_points`, nearest point among the faces around the
+        nearest input vertices). The projection is not used on the input itself because among
+        long, thin triangles the nearest vertices need not be corners of the point's face: on
+        the held-out TOSCA shapes at 3,000 vertices it moved 0.08% of the images by up to 2%
+        of the bounding box (session 17)."""
+        if self._same_as_input is None:
+            m, s = self.mesh, self.input
+            self._same_as_input = bool(m.n_vertices == s.n_vertices and np.array_equal(m.faces, s.faces)
+                                       and np.array_equal(m.vertices, s.vertices))
+        if self._same_as_input:
+            face, bary = np.asarray(pts.face, dtype=np.int64), np.asarray(pts.bary, dtype=np.float64)
+        else:
+            pos = pts.positions(self.mesh.vertices, self.mesh.faces)
+            if self._tree is None:  # per shape, not per match
+                from scipy.spatial import cKDTree
+
+                self._tree = cKDTree(self.input.vertices)
+            face, bary, _ = project_points(pos, self.input, tree=self._tree)
         vertex = self.input.faces[face, np.argmax(bary, axis=1)]
         return face, bary, self.input.input_ids[vertex]
 
