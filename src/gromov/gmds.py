@@ -145,6 +145,7 @@ def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
     sub = e[np.ix_(idx, idx)][~np.eye(h, dtype=bool)]
     return float(np.sqrt(np.mean(sub**2)))
 
+
 def log_ratio_residuals(dx: np.ndarray, dy: np.ndarray, floor: float = 0.0) -> np.ndarray:
     r"""Multiplicative residuals of a correspondence: the off-diagonal entries of
     :math:`\log\big((d_X + \epsilon) / (d_Y + \epsilon)\big)`, with :math:`\epsilon` = ``floor``.
@@ -159,9 +160,9 @@ def log_ratio_residuals(dx: np.ndarray, dy: np.ndarray, floor: float = 0.0) -> n
     \operatorname{dil} f^{-1}` that Gromov's Lipschitz distance between metric spaces
     minimises (Gromov, *Metric Structures for Riemannian and Non-Riemannian Spaces*, 1999,
     §3.A; Burago, Burago & Ivanov, *A Course in Metric Geometry*, 2001, §7.2). A pair of
-    points one unit apart that should be two apart
-    counts as much as one ten units apart that should be twenty. ``floor`` (>= 0, in the
-    distances' units) keeps the ratio finite where two points coincide.
+    points one unit apart that should be two apart counts as much as one ten units apart that
+    should be twenty. ``floor`` (>= 0, in the distances' units) keeps the ratio finite where
+    two points coincide.
     """
     dx, dy = np.asarray(dx, dtype=float), np.asarray(dy, dtype=float)
     if dx.ndim != 2 or dx.shape[0] != dx.shape[1] or dx.shape != dy.shape:
