@@ -1,11 +1,15 @@
-"""Closest point on a triangle mesh (compiled kernel), used to map points onto working meshes."""
+"""Closest point on a triangle mesh, used to map points between a mesh and its working mesh.
+
+The search is libigl's axis-aligned bounding-box tree (``igl.AABB``), which is exact; the
+barycentric coordinates of the point found are computed here (compiled kernel).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["closest_point_barycentric", "project_points"]
+__all__ = ["closest_point_barycentric", "project_points", "surface_tree"]
 
 
 @njit(cache=True, inline="always")
@@ -55,57 +59,59 @@ def closest_point_barycentric(p, a, b, c):
     return 1.0 - v - w, v, w
 
 
-def _project_impl(points, V, F, vf_indptr, vf_ids, candidates):
+def _bary_impl(points, V, F, face):
     n = points.shape[0]
-    face = np.empty(n, np.int64)
     bary = np.empty((n, 3))
-    dist = np.empty(n)
     for i in prange(n):
-        best = np.inf
-        bf = -1
-        bu = bv = bw = 0.0
-        p = points[i]
-        for k in range(candidates.shape[1]):
-            vtx = candidates[i, k]
-            for j in range(vf_indptr[vtx], vf_indptr[vtx + 1]):
-                f = vf_ids[j]
-                a, b, c = V[F[f, 0]], V[F[f, 1]], V[F[f, 2]]
-                u, v, w = closest_point_barycentric(p, a, b, c)
-                d = 0.0
-                for t in range(3):
-                    q = u * a[t] + v * b[t] + w * c[t] - p[t]
-                    d += q * q
-                if d < best:
-                    best, bf, bu, bv, bw = d, f, u, v, w
-        face[i] = bf
-        bary[i, 0], bary[i, 1], bary[i, 2] = bu, bv, bw
-        dist[i] = np.sqrt(best)
-    return face, bary, dist
+        f = face[i]
+        u, v, w = closest_point_barycentric(points[i], V[F[f, 0]], V[F[f, 1]], V[F[f, 2]])
+        bary[i, 0], bary[i, 1], bary[i, 2] = u, v, w
+    return bary
 
 
 # threaded for many points; serial for a few (cheaper, and safe in forked worker processes,
 # where numba's thread pool must not be started again)
-_project = njit(cache=True, parallel=True)(_project_impl)
-_project_serial = njit(cache=True)(_project_impl)
+_bary = njit(cache=True, parallel=True)(_bary_impl)
+_bary_serial = njit(cache=True)(_bary_impl)
 
 
-def project_points(points: np.ndarray, mesh, *, k: int = 4, tree=None):
-    """Project points onto ``mesh``: nearest point among faces around the ``k`` nearest vertices.
+def surface_tree(mesh):
+    """libigl's bounding-box tree over the faces of ``mesh``, for :func:`project_points`.
+
+    Build it once per mesh when projecting onto the same mesh many times.
+    """
+    import igl
+
+    tree = igl.AABB()
+    tree.init(np.ascontiguousarray(mesh.vertices, dtype=np.float64),
+              np.ascontiguousarray(mesh.faces, dtype=np.int64))
+    return tree
+
+
+def project_points(points: np.ndarray, mesh, *, tree=None):
+    """Project points onto ``mesh``: the closest point of the surface, exactly.
 
     Returns ``(face, bary, dist)``: ``(p,)`` face index, ``(p, 3)`` barycentric coordinates
     (non-negative, summing to one) and ``(p,)`` Euclidean distance to the surface point.
-    Exact when the closest surface point lies on a face incident to one of the ``k``
-    nearest vertices, which holds for points near a reasonably shaped mesh. ``tree`` is a
-    ``scipy.spatial.cKDTree`` of ``mesh.vertices`` to reuse (built here when not given).
-    """
-    from scipy.spatial import cKDTree
+    Where several faces are equally close (a point closest to an edge or a vertex) any of
+    them may be returned; the surface point is the same. ``tree`` is a
+    :func:`surface_tree` of ``mesh`` to reuse (built here when not given).
 
-    k = min(k, mesh.n_vertices)
+    Until session 18 this took the nearest point among the faces around the 4 nearest
+    vertices, which among long, thin triangles can miss the closest face: on TOSCA poses
+    simplified to 3,000 vertices it missed for 0.4-0.9% of the input vertices, by up to
+    1.1% of the bounding-box diagonal.
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"points must have shape (p, 3), got {points.shape}")
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    if len(F) == 0:
+        raise ValueError("cannot project onto a mesh without faces")
     if tree is None:
-        tree = cKDTree(mesh.vertices)
-    _, cand = tree.query(points, k=k)
-    cand = np.asarray(cand, dtype=np.int64).reshape(len(points), k)
-    indptr, ids = mesh.vertex_faces
-    kernel = _project if len(points) >= 4096 else _project_serial
-    return kernel(np.ascontiguousarray(points, dtype=np.float64), mesh.vertices, mesh.faces,
-                  indptr, ids, cand)
+        tree = surface_tree(mesh)
+    sq, face, _ = tree.squared_distance(V, F, points)
+    face = np.asarray(face, dtype=np.int64)
+    bary = (_bary_serial if len(points) < 4096 else _bary)(points, V, F, face)
+    return face, bary, np.sqrt(np.maximum(sq, 0.0))

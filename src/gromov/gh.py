@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _gmds_kernel as _kernel
-from ._project import project_points
+from ._project import project_points, surface_tree
 from .errors import GromovWarning
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
                    norm_value, parse_norm, trimmed_rms)
@@ -140,6 +140,11 @@ class ShapeMetric:
         self._symmetry: dict = {}
         self._ranking: dict = {}
 
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_tree"] = None  # libigl's tree does not pickle; rebuilt on first use
+        return state
+
     @property
     def mesh(self) -> Mesh:
         return self.working.mesh
@@ -251,12 +256,9 @@ class ShapeMetric:
         """Carry points on the working mesh to the input mesh: (face, bary, nearest vertex) there.
 
         Where the working mesh is the input mesh itself (not simplified: same vertices and
-        faces), the points are kept as they are; else they are projected onto the input
-        (:func:`gromov._project.project_points`, nearest point among the faces around the
-        nearest input vertices). The projection is not used on the input itself because among
-        long, thin triangles the nearest vertices need not be corners of the point's face: on
-        the held-out TOSCA shapes at 3,000 vertices it moved 0.08% of the images by up to 2%
-        of the bounding box (session 17)."""
+        faces), the points are kept as they are (same face and coordinates, not recomputed);
+        else they are projected onto the input (:func:`gromov._project.project_points`, the
+        closest point of the input surface)."""
         if self._same_as_input is None:
             m, s = self.mesh, self.input
             self._same_as_input = bool(m.n_vertices == s.n_vertices and np.array_equal(m.faces, s.faces)
@@ -266,9 +268,7 @@ class ShapeMetric:
         else:
             pos = pts.positions(self.mesh.vertices, self.mesh.faces)
             if self._tree is None:  # per shape, not per match
-                from scipy.spatial import cKDTree
-
-                self._tree = cKDTree(self.input.vertices)
+                self._tree = surface_tree(self.input)
             face, bary, _ = project_points(pos, self.input, tree=self._tree)
         vertex = self.input.faces[face, np.argmax(bary, axis=1)]
         return face, bary, self.input.input_ids[vertex]
