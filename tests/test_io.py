@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import gzip
+import importlib.util
 import logging
 import re
 import struct
+import sys
 import warnings
 from pathlib import Path
 
@@ -13,11 +15,22 @@ import numpy as np
 import pytest
 
 from gromov.errors import GromovWarning, MeshError, MeshFormatError
-from gromov.io import FORMATS, MeshFileNotFoundError, load, save
+from gromov.io import FORMATS, MeshFileNotFoundError, MissingDependencyError, load, save
 from gromov.mesh import Mesh, PointCloud
 from gromov.shapes import icosphere
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
+
+# VTK, Gmsh and Medit are read through the optional meshio (in the `test` extra)
+MESHIO = ["vtk", "vtu", "msh", "mesh"]
+needs_meshio = pytest.mark.skipif(importlib.util.find_spec("meshio") is None,
+                                  reason='meshio not installed: pip install "gromov[formats]"')
+
+
+def with_meshio(names):
+    """``names`` as pytest params, those of a meshio format marked ``needs_meshio``."""
+    return [pytest.param(n, marks=needs_meshio) if n.removesuffix(".gz").rpartition(".")[2]
+            in MESHIO else n for n in names]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -58,13 +71,13 @@ TRI = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
 
 
 # --------------------------------------------------------------------------- round trips
-EXACT = ["off", "obj", "ply", "vert", "tri"]
+EXACT = ["off", "obj", "ply", "vert", "tri", "mat", *MESHIO]
 
 
 @pytest.mark.parametrize("gz", [False, True])
-@pytest.mark.parametrize("ext", EXACT)
-def test_round_trip_exact(tmp_path, sphere, ext, gz):
-    path = tmp_path / f"s.{ext}{'.gz' if gz else ''}"
+@pytest.mark.parametrize("name", with_meshio([f"s.{e}" for e in EXACT]))
+def test_round_trip_exact(tmp_path, sphere, name, gz):
+    path = tmp_path / f"{name}{'.gz' if gz else ''}"
     save(sphere, path)
     back = load_quiet(path)
     assert isinstance(back, Mesh)
@@ -122,7 +135,9 @@ def test_stl_of_arbitrary_mesh_same_triangles(tmp_path, sphere):
                                sphere.vertices[sphere.faces].astype(np.float32), rtol=0, atol=0)
 
 
-@pytest.mark.parametrize("name", ["p.off", "p.obj", "p.ply", "p.ply.gz", "p.off.gz"])
+@pytest.mark.parametrize("name", with_meshio(["p.off", "p.obj", "p.ply", "p.ply.gz", "p.off.gz",
+                                              "p.mat", "p.mat.gz", "p.vtk", "p.vtu", "p.msh",
+                                              "p.mesh", "p.msh.gz"]))
 def test_point_cloud_round_trip(tmp_path, name):
     pts = np.random.default_rng(0).normal(size=(50, 3))
     save(PointCloud(pts), tmp_path / name)
@@ -146,7 +161,7 @@ def test_extension_case_insensitive_and_str_path(tmp_path, sphere):
 
 
 def test_registry_covers_formats():
-    assert {"off", "obj", "ply", "stl", "vert", "tri"} <= set(FORMATS)
+    assert {"off", "obj", "ply", "stl", "vert", "tri", "mat", *MESHIO} <= set(FORMATS)
     for fmt in FORMATS.values():
         assert callable(fmt.read) and callable(fmt.write)
 
@@ -339,7 +354,8 @@ def test_directory(tmp_path):
 def test_unknown_extension_lists_supported(tmp_path):
     path = write(tmp_path / "mesh.xyz", "1 2 3\n")
     with raises_naming(path, match=r"unknown mesh format \(extension '\.xyz'\).*\.off.*\.obj"
-                                   r".*\.ply.*\.stl.*\.vert.*\.tri"):
+                                   r".*\.ply.*\.stl.*\.vert.*\.tri.*\.mat.*\.vtk.*\.vtu.*\.msh"
+                                   r".*\.mesh \(each optionally followed by \.gz\)"):
         load(path)
     with raises_naming(tmp_path / "noext", match="no extension"):
         load(tmp_path / "noext")
@@ -348,7 +364,9 @@ def test_unknown_extension_lists_supported(tmp_path):
 
 
 @pytest.mark.parametrize("name,text", [("e.off", ""), ("e.off", "  \n\n"), ("e.obj", ""),
-                                       ("e.ply", ""), ("e.stl", ""), ("e.vert", "")])
+                                       ("e.ply", ""), ("e.stl", ""), ("e.vert", ""), ("e.mat", ""),
+                                       *[pytest.param(f"e.{e}", "", marks=needs_meshio)
+                                         for e in MESHIO]])
 def test_empty_file(tmp_path, name, text):
     path = write(tmp_path / name, text)
     write(tmp_path / "e.tri", "1 2 3\n")
@@ -560,8 +578,10 @@ def test_stl_errors(tmp_path, sphere):
         load(path)
 
 
-@pytest.mark.parametrize("source", ["s.off", "s.obj", "s.ply", "s.stl", "square_quads.off",
-                                    "cube_quads.obj", "mixed_ascii.ply", "tetra_ascii.stl"])
+@pytest.mark.parametrize("source", with_meshio(
+    ["s.off", "s.obj", "s.ply", "s.stl", "s.mat", "s.vtk", "s.vtu", "s.msh", "s.mesh",
+     "square_quads.off", "cube_quads.obj", "mixed_ascii.ply", "tetra_ascii.stl",
+     "square_2d.mesh"]))
 def test_damaged_files_raise_only_mesh_format_error(tmp_path, source):
     """Cut or corrupt a valid file anywhere: load works or raises MeshFormatError, nothing else."""
     if source.startswith("s."):
@@ -603,6 +623,293 @@ def test_save_errors(tmp_path, sphere):
         save(sphere.vertices, tmp_path / "m.off")
 
 
+# --------------------------------------------------------------------------- MATLAB .mat
+# a tetrahedron in the TOSCA layout: column vectors X, Y, Z and 1-based TRIV stored as doubles
+TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+TET_TRIV = np.array([[1, 3, 2], [1, 2, 4], [2, 3, 4], [1, 4, 3]], float)
+
+
+def tosca_struct(**fields):
+    """TOSCA's ``surface`` struct for the tetrahedron; a field given as ``None`` is left out."""
+    out = {"X": TET_V[:, :1], "Y": TET_V[:, 1:2], "Z": TET_V[:, 2:], "TRIV": TET_TRIV}
+    out.update(fields)
+    return {k: v for k, v in out.items() if v is not None}
+
+
+def savemat(path: Path, variables: dict) -> Path:
+    from scipy.io import savemat as _savemat
+
+    _savemat(path, variables)
+    return path
+
+
+@pytest.mark.parametrize("variables", [
+    {"surface": tosca_struct()},           # TOSCA
+    {"shape": tosca_struct(), "n": 4.0},   # another struct name, other variables ignored
+    tosca_struct(),                        # X, Y, Z, TRIV at the top level
+])
+def test_mat_tosca_layout_one_based(tmp_path, variables):
+    m = load_quiet(savemat(tmp_path / "tet.mat", variables))
+    np.testing.assert_array_equal(m.vertices, TET_V)
+    # TRIV row (1, 3, 2) is the triangle of vertices 0, 2, 1: (0,0,0), (0,1,0), (1,0,0)
+    np.testing.assert_array_equal(m.faces[0], [0, 2, 1])
+    np.testing.assert_array_equal(m.vertices[m.faces[0]], [[0, 0, 0], [0, 1, 0], [1, 0, 0]])
+    np.testing.assert_array_equal(m.faces, TET_TRIV.astype(int) - 1)
+    assert m.boundary_loops == [] and m.euler_characteristic == 2
+    assert m.area == pytest.approx(1.5 + np.sqrt(3) / 2)
+
+
+def test_mat_integer_triv_and_row_vectors(tmp_path):
+    # MATLAB code also stores TRIV as int32 and coordinates as row vectors
+    variables = {"surface": tosca_struct(X=TET_V[:, 0][None], TRIV=TET_TRIV.astype(np.int32))}
+    m = load_quiet(savemat(tmp_path / "int.mat", variables))
+    np.testing.assert_array_equal(m.faces, TET_TRIV.astype(int) - 1)
+    np.testing.assert_array_equal(m.vertices, TET_V)
+
+
+@pytest.mark.parametrize("triv", [None, np.zeros((0, 0))])
+def test_mat_point_cloud(tmp_path, triv):
+    pc = load_quiet(savemat(tmp_path / "pc.mat", {"surface": tosca_struct(TRIV=triv)}))
+    assert type(pc) is PointCloud
+    np.testing.assert_array_equal(pc.vertices, TET_V)
+
+
+def test_mat_written_in_tosca_layout(tmp_path, sphere):
+    from scipy.io import loadmat
+
+    save(sphere, tmp_path / "s.mat")
+    data = (tmp_path / "s.mat").read_bytes()
+    assert data.startswith(b"MATLAB 5.0 MAT-file, written by gromov")
+    surface = loadmat(tmp_path / "s.mat")["surface"]  # as MATLAB users read it
+    assert surface.dtype.names == ("X", "Y", "Z", "TRIV") and surface.shape == (1, 1)
+    for j, c in enumerate("XYZ"):
+        col = surface[c][0, 0]
+        assert col.shape == (sphere.n_vertices, 1) and col.dtype == np.float64
+        np.testing.assert_array_equal(col[:, 0], sphere.vertices[:, j])
+    triv = surface["TRIV"][0, 0]
+    assert triv.dtype == np.float64 and triv.shape == (sphere.n_faces, 3)
+    np.testing.assert_array_equal(triv, sphere.faces + 1)  # 1-based
+    save(sphere, tmp_path / "again.mat")  # no time stamp in the header: same bytes
+    assert (tmp_path / "again.mat").read_bytes() == data
+
+
+def _cell_column():
+    cell = np.empty((4, 1), object)
+    for i in range(4):
+        cell[i, 0] = np.array([[float(i)]])
+    return cell
+
+
+def _struct_array():
+    a = np.zeros((1, 2), dtype=[("X", "O"), ("Y", "O"), ("Z", "O")])
+    for i in range(2):
+        a[0, i] = (TET_V[:, :1], TET_V[:, 1:2], TET_V[:, 2:])
+    return a
+
+
+@pytest.mark.parametrize("variables,match", [
+    ({"foo": np.eye(3)}, r"no mesh found: expected a struct \(such as TOSCA's 'surface'\) with "
+                         r"fields X, Y, Z.*the file holds 'foo'"),
+    ({"surface": tosca_struct(Z=None)}, r"struct 'surface' lacks Z \(found X, Y, TRIV\)"),
+    ({"X": TET_V[:, 0], "Y": TET_V[:, 1]}, r"top-level variables lack Z \(found X, Y\)"),
+    ({"surface": tosca_struct(), "shape": tosca_struct()},
+     r"2 meshes in one file \(struct 'surface', struct 'shape'\); keep only one"),
+    ({"surface": tosca_struct(), **tosca_struct()},
+     r"2 meshes in one file \(struct 'surface', top-level variables\)"),
+    ({"surface": _struct_array()}, r"variable 'surface' is a 1 x 2 struct array"),
+    ({"surface": tosca_struct(Z=TET_V[:3, 2:])},
+     r"X, Y and Z of struct 'surface' have different lengths \(4, 4, 3\)"),
+    ({"surface": tosca_struct(X="abcd")}, r"field 'X' of struct 'surface' holds text, not real"),
+    ({"surface": tosca_struct(Y=_cell_column())}, r"field 'Y' of struct 'surface' holds a cell "
+                                                  r"array or struct"),
+    ({"surface": tosca_struct(Z=TET_V[:, 2:] + 1j)}, r"field 'Z' .* holds complex numbers"),
+    ({"X": TET_V[:, 0], "Y": TET_V[:, 1], "Z": TET_V[:, 2], "TRIV": "1 2 3"},
+     r"variable 'TRIV' holds text"),
+    ({"surface": tosca_struct(X=TET_V[:, :2])},
+     r"field 'X' of struct 'surface' must be a vector \(one coordinate per vertex\), got a 4 x 2"),
+    ({"surface": tosca_struct(TRIV=np.ones((4, 4)))},
+     r"field 'TRIV' of struct 'surface' must be an m x 3 matrix of 1-based vertex indices, got "
+     r"a 4 x 4 array$"),
+    ({"surface": tosca_struct(TRIV=TET_TRIV.T)}, r"got a 3 x 4 array \(transposed\?"),
+    ({"surface": tosca_struct(TRIV=TET_TRIV + [[0, 0, 0], [0, 0.5, 0], [0, 0, 0], [0, 0, 0]])},
+     r"non-integer vertex indices in 1 triangle, first triangle 1: \[1\.0, 2\.5, 4\.0\]"),
+    ({"surface": tosca_struct(TRIV=TET_TRIV - 1)},
+     r"face 0 has negative vertex index 0: valid indices are 1\.\.4 \(4 vertices, 1-based\)"),
+    ({"surface": tosca_struct(TRIV=TET_TRIV + 1)},
+     r"face 1 has out-of-range vertex index 5: valid indices are 1\.\.4 \(4 vertices, "
+     r"1-based\)"),
+    ({"surface": tosca_struct(X=TET_V[:, :1] * np.nan)}, r"4 vertices have NaN or infinite"),
+])
+def test_mat_errors(tmp_path, variables, match):
+    path = savemat(tmp_path / "bad.mat", variables)
+    with raises_naming(path, match=match):
+        load(path)
+
+
+def _v73_header() -> bytes:
+    # what MATLAB's save -v7.3 writes: a 128-byte MAT header with version 0x0200, then HDF5
+    text = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116)
+    return text + bytes(8) + struct.pack("<H", 0x0200) + b"IM"
+
+
+@pytest.mark.parametrize("data", [
+    _v73_header().ljust(512, b"\0") + b"\x89HDF\r\n\x1a\n" + bytes(64),  # signature found
+    _v73_header() + bytes(64),                                          # scipy refuses it
+    b"\x89HDF\r\n\x1a\n" + bytes(64),                                   # a bare HDF5 file
+])
+def test_mat_v73_hdf5_rejected(tmp_path, data):
+    path = write(tmp_path / "v73.mat", data)
+    with raises_naming(path, match=r"MATLAB v7\.3 MAT-file \(HDF5\), which scipy\.io\.loadmat "
+                                   r"cannot read; re-save it in MATLAB with save\(\.\.\., '-v7'\)"):
+        load(path)
+
+
+def test_mat_not_a_mat_file(tmp_path):
+    path = write(tmp_path / "text.mat", "hello, this is not a MAT-file\n" * 10)
+    with raises_naming(path, match="not a readable MATLAB MAT-file"):
+        load(path)
+    path = write(tmp_path / "plain.mat.gz", "hello")
+    with raises_naming(path, match="bad gzip data: the name ends in .gz"):
+        load(path)
+
+
+# --------------------------------------------------------------------------- meshio formats
+PTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [0, 0, 1]], float)
+
+
+def meshio_write(path: Path, cells, points=PTS, **kw) -> Path:
+    meshio = pytest.importorskip("meshio")
+    module = {"vtk": meshio.vtk, "vtu": meshio.vtu, "msh": meshio.gmsh, "mesh": meshio.medit}
+    module[path.suffix[1:]].write(str(path), meshio.Mesh(points, cells), **kw)
+    return path
+
+
+@needs_meshio
+def test_meshio_files_written_as_documented(tmp_path, sphere):
+    for ext in MESHIO:
+        save(sphere, tmp_path / f"s.{ext}")
+    assert (tmp_path / "s.vtk").read_bytes().startswith(
+        b"# vtk DataFile Version 4.2\nwritten by meshio")
+    assert b"\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 42 double\n" in \
+        (tmp_path / "s.vtk").read_bytes()
+    vtu = (tmp_path / "s.vtu").read_bytes()
+    assert b'compressor="vtkZLibDataCompressor"' in vtu and b'type="Float64"' in vtu
+    assert (tmp_path / "s.msh").read_bytes().startswith(b"$MeshFormat\n4.1 1 8\n")
+    medit = (tmp_path / "s.mesh").read_text()
+    assert medit.startswith("MeshVersionFormatted 2\nDimension 3\n")
+    assert f"{sphere.vertices[0, 0]:.16e}" in medit  # 17 significant digits: exact
+
+
+@needs_meshio
+@pytest.mark.parametrize("ext", ["vtk", "vtu"])
+def test_meshio_quads_fan_triangulated_in_block_order(tmp_path, ext):
+    # a triangle block, a quad block and a line block (ignored); vertex 5 is used by no face
+    path = meshio_write(tmp_path / f"q.{ext}", [("triangle", [[1, 4, 2]]),
+                                                ("quad", [[0, 1, 2, 3]]), ("line", [[0, 5]])])
+    with pytest.warns(GromovWarning, match=rf"q\.{ext}: triangulated 1 polygon.*2 faces -> 3"):
+        m = load(path, repair=False)
+    np.testing.assert_array_equal(m.vertices, PTS)
+    np.testing.assert_array_equal(m.faces, [[1, 4, 2], [0, 1, 2], [0, 2, 3]])
+
+
+def test_medit_fixture_2d_points_quads_edges():
+    pytest.importorskip("meshio")
+    with pytest.warns(GromovWarning, match=r"square_2d\.mesh: triangulated 1 polygon"):
+        m = load(FIXTURES / "square_2d.mesh")
+    # Dimension 2: z = 0 added; the Edges block is ignored; blocks in file order
+    np.testing.assert_array_equal(m.vertices, [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0],
+                                               [1, 1, 0], [2, 1, 0]])
+    np.testing.assert_array_equal(m.faces, [[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]])
+    assert m.area == pytest.approx(2.0)
+    assert len(m.boundary_loops) == 1 and m.euler_characteristic == 1
+
+
+@needs_meshio
+def test_meshio_triangles_beside_tetrahedra_are_read(tmp_path):
+    path = meshio_write(tmp_path / "mixed.msh", [("tetra", [[0, 1, 3, 5]]),
+                                                 ("triangle", [[0, 1, 3]])], fmt_version="2.2",
+                        binary=False)
+    m = load(path, repair=False)
+    np.testing.assert_array_equal(m.faces, [[0, 1, 3]])
+    assert m.n_vertices == 6
+
+
+@needs_meshio
+@pytest.mark.parametrize("ext", ["vtk", "vtu", "mesh"])
+def test_meshio_volume_mesh_rejected(tmp_path, ext):
+    path = meshio_write(tmp_path / f"tet.{ext}", [("tetra", [[0, 1, 3, 5], [1, 2, 3, 5]])])
+    with raises_naming(path, match=r"volume meshes are not supported \(the file has 2 tetra "
+                                   r"cells and no triangles\): extract the boundary surface "
+                                   r"first"):
+        load(path)
+
+
+@needs_meshio
+def test_meshio_second_order_only_rejected(tmp_path):
+    path = meshio_write(tmp_path / "t6.vtk", [("triangle6", [[0, 1, 2, 3, 4, 5]])])
+    with raises_naming(path, match=r"second-order surface cells \(triangle6\) are not supported"):
+        load(path)
+
+
+@needs_meshio
+def test_meshio_no_faces_is_point_cloud(tmp_path):
+    path = meshio_write(tmp_path / "ln.vtk", [("line", [[0, 1]]), ("vertex", [[2]])])
+    pc = load_quiet(path)
+    assert type(pc) is PointCloud
+    np.testing.assert_array_equal(pc.vertices, PTS)
+
+
+MEDIT_TRI = "MeshVersionFormatted 2\nDimension 3\nVertices\n3\n0 0 0 0\n1 0 0 0\n0 1 0 0\n" \
+            "Triangles\n1\n{}\nEnd\n"
+
+
+@needs_meshio
+@pytest.mark.parametrize("name,text,match", [
+    ("g.vtk", "hello\n", r"cannot read as legacy VTK with meshio \(ReadError: Illegal VTK header"),
+    ("g.vtu", "hello\n", r"cannot read as VTK XML \(\.vtu\) with meshio \(ReadError"),
+    ("g.msh", "hello\n", r"cannot read as Gmsh with meshio \(ReadError"),
+    ("g.mesh", "hello\n", r"cannot read as Medit with meshio \(ReadError: Unknown keyword 'hello'"),
+    ("pd.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n"
+               "0 0 0\n1 0 0\n0 1 0\nPOLYGONS 1 4\n3 0 1 2\n", r"not POLYDATA"),
+    ("oor.mesh", MEDIT_TRI.format("1 2 4 0"), r"face 0 has out-of-range vertex index 4: valid "
+                                              r"indices are 1\.\.3 \(3 vertices, 1-based\)"),
+    ("zero.mesh", MEDIT_TRI.format("0 1 2 0"), r"face 0 has negative vertex index 0"),
+    ("nan.mesh", MEDIT_TRI.format("1 2 3 0").replace("1 0 0 0", "nan 0 0 0"),
+     r"1 vertices have NaN or infinite coordinates, first vertex 1"),
+])
+def test_meshio_errors(tmp_path, name, text, match):
+    path = write(tmp_path / name, text)
+    with raises_naming(path, match=match):
+        load(path)
+
+
+@needs_meshio
+@pytest.mark.parametrize("ext", MESHIO)
+def test_meshio_gzip_errors_name_the_gz_file(tmp_path, ext):
+    path = write(tmp_path / f"g.{ext}.gz", gzip.compress(b"hello\n"))
+    with raises_naming(path, match="cannot read as .* with meshio") as info:
+        load(path)
+    assert "gromov-" not in str(info.value)  # not the temporary file's name
+    path = write(tmp_path / f"plain.{ext}.gz", b"hello")
+    with raises_naming(path, match="bad gzip data: the name ends in .gz"):
+        load(path)
+
+
+@pytest.mark.parametrize("name", ["m.vtk", "m.vtu.gz", "m.msh", "m.mesh"])
+def test_meshio_missing_says_what_to_install(tmp_path, monkeypatch, sphere, name):
+    monkeypatch.setitem(sys.modules, "meshio", None)  # `import meshio` raises ImportError
+    path = write(tmp_path / name, "anything")
+    ext = name.split(".")[1]
+    install = re.escape('needs meshio, an optional dependency: pip install "gromov[formats]"')
+    with raises_naming(path, MissingDependencyError, rf"reading \.{ext} files {install}") as info:
+        load(path)
+    assert isinstance(info.value, ImportError) and isinstance(info.value, MeshFormatError)
+    out = tmp_path / f"out.{ext}"
+    with raises_naming(out, MissingDependencyError, rf"writing \.{ext} files {install}"):
+        save(sphere, out)
+    assert not out.exists()
+
+
 # --------------------------------------------------------------------------- real data
 def test_tosca_cat(data_dir, tmp_path):
     cat = load_quiet(data_dir / "tosca" / "cat0.off.gz")  # no repair needed: no warning
@@ -641,3 +948,26 @@ def test_topkids_have_handles(data_dir):
     assert kid.n_components == 1
     assert kid.euler_characteristic <= 0  # merged self-contacts: handles
     assert kid.euler_characteristic == -7
+
+
+def test_tosca_cat_mat_round_trip(data_dir, tmp_path):
+    from scipy.io import loadmat
+
+    cat = load_quiet(data_dir / "tosca" / "cat0.off.gz")
+    for name in ("cat0.mat", "cat0.mat.gz"):
+        save(cat, tmp_path / name)
+        back = load_quiet(tmp_path / name)
+        np.testing.assert_array_equal(back.vertices, cat.vertices)
+        np.testing.assert_array_equal(back.faces, cat.faces)
+    triv = loadmat(tmp_path / "cat0.mat")["surface"]["TRIV"][0, 0]
+    assert triv.shape == (55712, 3) and (triv.min(), triv.max()) == (1, 27894)  # 1-based
+
+
+@needs_meshio
+@pytest.mark.parametrize("ext", MESHIO)
+def test_tosca_cat_meshio_round_trip(data_dir, tmp_path, ext):
+    cat = load_quiet(data_dir / "tosca" / "cat0.off.gz")
+    save(cat, tmp_path / f"cat0.{ext}")
+    back = load_quiet(tmp_path / f"cat0.{ext}")
+    np.testing.assert_array_equal(back.vertices, cat.vertices)
+    np.testing.assert_array_equal(back.faces, cat.faces)

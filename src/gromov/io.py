@@ -1,4 +1,4 @@
-"""Reading and writing meshes: OFF, OBJ, PLY, STL and TOSCA ``.vert``/``.tri`` pairs.
+"""Reading and writing meshes: OFF, OBJ, PLY, STL, TOSCA, MATLAB, VTK, Gmsh and Medit files.
 
 All I/O lives here, with one reader and one writer per format in the registry
 :data:`FORMATS` (extension -> :class:`FileFormat`), so adding a format means adding one
@@ -22,7 +22,13 @@ Design choices
 * **Errors.** Every problem with a file raises :class:`~gromov.errors.MeshFormatError`
   whose message starts with the file name; a missing file raises
   :class:`MeshFileNotFoundError`, which is both a ``MeshFormatError`` and a
-  ``FileNotFoundError``.
+  ``FileNotFoundError``; a format whose optional package is not installed raises
+  :class:`MissingDependencyError`, both a ``MeshFormatError`` and an ``ImportError``.
+* **Optional formats.** VTK (``.vtk``, ``.vtu``), Gmsh (``.msh``) and Medit (``.mesh``)
+  files are parsed by meshio (``pip install "gromov[formats]"``), imported only when such
+  a file is read or written.
+  Its readers are called directly on a file (``meshio.read`` would ``sys.exit`` on a bad
+  file); whatever they raise on malformed input becomes a ``MeshFormatError``.
 
 Format notes
 ------------
@@ -45,6 +51,26 @@ STL
 TOSCA ``.vert``/``.tri``
     ``.vert``: one ``x y z`` per line; ``.tri``: one triangle per line, 1-based.
     Loading either file reads both; saving writes both.
+MATLAB ``.mat``
+    The TOSCA/SHREC layout: one struct (TOSCA calls it ``surface``, any name is accepted)
+    with column vectors ``X``, ``Y``, ``Z`` and an optional m x 3 matrix ``TRIV`` of
+    1-based triangle indices (no ``TRIV``: a point cloud); variables ``X``, ``Y``, ``Z``
+    [, ``TRIV``] at the top level of the file are read alike. Several such structs in one
+    file are an error (the message names them). Versions 4 to 7 are read with
+    :func:`scipy.io.loadmat`; version 7.3 files are HDF5, which scipy cannot read, and are
+    rejected with a message saying so. Written as a version 5 file holding a struct
+    ``surface`` with float64 ``X``, ``Y``, ``Z`` and ``TRIV`` (as TOSCA's files do): exact.
+VTK ``.vtk``/``.vtu``, Gmsh ``.msh``, Medit ``.mesh`` (optional, meshio)
+    Vertices are meshio's points (2-D points get z = 0); faces are the ``triangle``,
+    ``quad`` and ``polygon`` cell blocks, in file order; other cells (vertices, lines,
+    second-order elements...) are ignored, and a file whose only cells are volume cells
+    (tetrahedra, hexahedra...) is rejected: extract its boundary surface first. No faces:
+    a point cloud. Legacy ``.vtk`` must be an ``UNSTRUCTURED_GRID`` (meshio does not read
+    ``POLYDATA``); ``.msh`` is read as Gmsh (not ANSYS). Written with float64
+    coordinates, so the round trip is exact: legacy VTK 4.2 binary, VTU binary
+    (zlib-compressed), Gmsh 4.1 binary, Medit ASCII with 17 significant digits; a point
+    cloud is written with one ``vertex`` cell per point (none in Medit). A ``.gz`` file is
+    decompressed into a temporary file for meshio (and written through one).
 
 Polygons with more than three vertices are split into triangle fans, with a
 :class:`~gromov.errors.GromovWarning`.
@@ -57,10 +83,12 @@ import logging
 import os
 import re
 import struct
+import tempfile
 import warnings
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from io import BytesIO
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +97,8 @@ from . import mesh as _mesh
 from .errors import GromovWarning, MeshError, MeshFormatError
 from .mesh import Mesh, PointCloud
 
-__all__ = ["load", "save", "FORMATS", "FileFormat", "MeshFileNotFoundError"]
+__all__ = ["load", "save", "FORMATS", "FileFormat", "MeshFileNotFoundError",
+           "MissingDependencyError"]
 
 logger = logging.getLogger(__name__)
 
@@ -79,6 +108,16 @@ class MeshFileNotFoundError(MeshFormatError, FileNotFoundError):
 
     Caught by ``except MeshFormatError``, ``except ValueError`` and
     ``except FileNotFoundError`` alike. The message names the missing file.
+    """
+
+
+class MissingDependencyError(MeshFormatError, ImportError):
+    """A file format needs an optional package that is not installed (meshio for VTK,
+    Gmsh and Medit files).
+
+    Caught by ``except MeshFormatError``, ``except ValueError`` and ``except ImportError``
+    alike. The message names the file and says what to install
+    (``pip install "gromov[formats]"``).
     """
 
 
@@ -772,6 +811,275 @@ def _write_tosca(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
     _write_bytes(tpath, _int_rows(shape.faces + 1).encode(), gz)
 
 
+# --------------------------------------------------------------------------- MATLAB .mat
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+# the 116-byte text at the start of a version 5 MAT-file; scipy writes the current time
+# there, a fixed text makes the files we write reproducible byte for byte
+_MAT_HEADER = b"MATLAB 5.0 MAT-file, written by gromov".ljust(116, b" ")
+_MAT_XYZ = ("X", "Y", "Z")
+
+
+def _mat_v73(name: str) -> MeshFormatError:
+    return _err(name, "MATLAB v7.3 MAT-file (HDF5), which scipy.io.loadmat cannot read; "
+                      "re-save it in MATLAB with save(..., '-v7') or convert it to .off/.ply")
+
+
+def _shape_str(a: np.ndarray) -> str:
+    return " x ".join(map(str, a.shape)) if a.ndim else "scalar"
+
+
+def _mat_struct(value) -> tuple[dict, int] | None:
+    """``(fields of the first element, number of elements)`` if ``value`` is a MATLAB struct
+    as scipy loads it (``mat_struct``, an object array of them, a record array or a dict),
+    else ``None``."""
+    if isinstance(value, dict):
+        return value, 1
+    if hasattr(value, "_fieldnames"):  # scipy.io.matlab.mat_struct (struct_as_record=False)
+        return {f: getattr(value, f) for f in value._fieldnames}, 1
+    if not isinstance(value, np.ndarray) or value.size == 0:
+        return None
+    if value.dtype.names is not None:  # record array (struct_as_record=True)
+        first = value.reshape(-1)[0]
+        return {f: first[f] for f in value.dtype.names}, value.size
+    if value.dtype == object and all(hasattr(x, "_fieldnames") for x in value.flat):
+        fields, _ = _mat_struct(value.reshape(-1)[0])
+        return fields, value.size
+    return None
+
+
+def _mat_numbers(value, name: str, what: str) -> np.ndarray:
+    """``value`` as a real numeric array, or a MeshFormatError saying what it holds."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
+        return value
+    if isinstance(value, np.ndarray):
+        kind = {"U": "text", "S": "text", "c": "complex numbers", "b": "logical values"}.get(
+            value.dtype.kind, "a cell array or struct")
+    elif hasattr(value, "tocsr"):
+        kind = "a sparse matrix"
+    elif _mat_struct(value) is not None:
+        kind = "a struct"
+    else:
+        kind = f"a {type(value).__name__}"
+    raise _err(name, f"{what} holds {kind}, not real numbers")
+
+
+def _parse_mat(data: bytes, name: str) -> RawShape:
+    from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
+
+    if data[:8] == _HDF5_SIGNATURE or data[512:520] == _HDF5_SIGNATURE:
+        raise _mat_v73(name)
+    try:
+        # squeeze_me=False keeps shapes ((n, 1) columns, a 1 x 3 TRIV); structs come as
+        # object arrays of mat_struct, but _mat_struct also takes the other representations
+        content = loadmat(BytesIO(data), squeeze_me=False, struct_as_record=False)
+    except NotImplementedError:  # scipy's answer to a v7.3 header
+        raise _mat_v73(name) from None
+    # what scipy raises on damaged or foreign files (UnboundLocalError: a scipy bug on some
+    # truncated files; MemoryError: a corrupted array size)
+    except (MatReadError, OSError, UnboundLocalError, MemoryError, *_PARSE_ERRORS) as exc:
+        raise _err(name, f"not a readable MATLAB MAT-file ({type(exc).__name__}: {exc})") from None
+    variables = {k: v for k, v in content.items() if not k.startswith("__")}
+    found: list[tuple[str, dict]] = []    # (label, fields) with X, Y and Z
+    partial: list[tuple[str, dict]] = []  # with some of X, Y, Z, TRIV
+    for var, value in variables.items():
+        struct_ = _mat_struct(value)
+        if struct_ is None:
+            continue
+        fields, size = struct_
+        if not set(fields) & {*_MAT_XYZ, "TRIV"}:
+            continue
+        if size != 1:
+            raise _err(name, f"variable {var!r} is a {_shape_str(value)} struct array; expected "
+                             "a single struct with fields X, Y, Z and TRIV")
+        (found if set(_MAT_XYZ) <= set(fields) else partial).append((f"struct {var!r}", fields))
+    top = {k: variables[k] for k in (*_MAT_XYZ, "TRIV") if k in variables}
+    if top:
+        (found if set(_MAT_XYZ) <= set(top) else partial).append(("top-level variables", top))
+    if len(found) > 1:
+        raise _err(name, f"{len(found)} meshes in one file ("
+                         f"{', '.join(label for label, _ in found)}); keep only one")
+    if not found:
+        if partial:
+            label, fields = partial[0]
+            missing = [c for c in _MAT_XYZ if c not in fields]
+            raise _err(name, f"{label} lack{'s' if label.startswith('struct') else ''} "
+                             f"{', '.join(missing)} (found {', '.join(fields)}); a mesh needs X, "
+                             "Y, Z coordinate vectors and optionally TRIV")
+        held = ", ".join(repr(k) for k in variables) or "no variables"
+        raise _err(name, "no mesh found: expected a struct (such as TOSCA's 'surface') with "
+                         "fields X, Y, Z and optionally TRIV, or variables X, Y, Z [, TRIV]; "
+                         f"the file holds {held}")
+    label, fields = found[0]
+
+    def what(field: str) -> str:
+        return f"variable {field!r}" if label.startswith("top") else f"field {field!r} of {label}"
+
+    coords = []
+    for c in _MAT_XYZ:
+        a = _mat_numbers(fields[c], name, what(c))
+        if a.ndim > 2 or (a.ndim == 2 and min(a.shape) > 1):
+            raise _err(name, f"{what(c)} must be a vector (one coordinate per vertex), got a "
+                             f"{_shape_str(a)} array")
+        coords.append(a.reshape(-1).astype(np.float64))
+    if len({len(c) for c in coords}) > 1:
+        where = "the top-level variables" if label.startswith("top") else label
+        raise _err(name, f"X, Y and Z of {where} have different lengths "
+                         f"({', '.join(str(len(c)) for c in coords)})")
+    vertices = np.column_stack(coords)
+    triv = fields.get("TRIV")
+    if triv is None:
+        logger.debug("%s: no TRIV, reading a point cloud", name)
+        return RawShape(vertices, None, None, 1, name, name)
+    t = _mat_numbers(triv, name, what("TRIV"))
+    if t.size == 0:
+        logger.debug("%s: empty TRIV, reading a point cloud", name)
+        return RawShape(vertices, None, None, 1, name, name)
+    if t.ndim != 2 or t.shape[1] != 3:
+        hint = " (transposed? TOSCA stores one triangle per row)" if t.ndim == 2 and \
+            t.shape[0] == 3 else ""
+        raise _err(name, f"{what('TRIV')} must be an m x 3 matrix of 1-based vertex indices, "
+                         f"got a {_shape_str(t)} array{hint}")
+    tf = t.astype(np.float64)
+    bad = ~(np.isfinite(tf) & (tf == np.round(tf)) & (np.abs(tf) < 2**53)).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        k = int(bad.sum())
+        raise _err(name, f"{what('TRIV')} holds non-integer vertex indices in {k} "
+                         f"triangle{'s' if k > 1 else ''}, first triangle {i}: {tf[i].tolist()}")
+    flat = tf.astype(np.int64).ravel() - 1
+    return RawShape(vertices, np.full(len(t), 3, np.int64), flat, 1, name, name)
+
+
+def _format_mat(shape: PointCloud, name: str) -> bytes:
+    from scipy.io import savemat
+
+    v = shape.vertices
+    surface = {c: np.ascontiguousarray(v[:, j:j + 1]) for j, c in enumerate(_MAT_XYZ)}
+    if isinstance(shape, Mesh):
+        surface["TRIV"] = (shape.faces + 1).astype(np.float64)  # 1-based doubles, like TOSCA
+    buf = BytesIO()
+    savemat(buf, {"surface": surface}, format="5", do_compression=False, oned_as="column")
+    return _MAT_HEADER + buf.getvalue()[len(_MAT_HEADER):]
+
+
+# --------------------------------------------------------------------------- meshio formats
+@dataclass(frozen=True)
+class _MeshioFormat:
+    module: str              # meshio submodule whose read()/write() handle the format
+    label: str               # name in messages
+    base: int                # index base of the file format (meshio converts to 0-based)
+    write_options: tuple     # keyword arguments of the writer, as (key, value) pairs
+
+
+_MESHIO = {
+    "vtk": _MeshioFormat("vtk", "legacy VTK", 0, (("fmt_version", "4.2"), ("binary", True))),
+    "vtu": _MeshioFormat("vtu", "VTK XML (.vtu)", 0, (("binary", True),
+                                                      ("compression", "zlib"))),
+    "msh": _MeshioFormat("gmsh", "Gmsh", 1, (("fmt_version", "4.1"), ("binary", True))),
+    "mesh": _MeshioFormat("medit", "Medit", 1, (("float_fmt", ".16e"),)),
+}
+# meshio cell types read as faces, and prefixes of volume cell types (a volume mesh is refused)
+_MESHIO_FACES = ("triangle", "quad", "polygon")
+_MESHIO_VOLUME = ("tetra", "hexahedron", "wedge", "pyramid", "polyhedron")
+
+
+def _import_meshio(name: str, verb: str, ext: str):
+    try:
+        import meshio
+    except ImportError:
+        raise MissingDependencyError(
+            f'{name}: {verb} .{ext} files needs meshio, an optional dependency: '
+            f'pip install "gromov[formats]"') from None
+    return meshio
+
+
+def _meshio_read_errors(meshio) -> tuple[type[BaseException], ...]:
+    """What meshio's readers raise on malformed files (seen by fuzzing meshio 5.3)."""
+    corrupt = getattr(getattr(meshio, "_exceptions", None), "CorruptionError", meshio.ReadError)
+    return (meshio.ReadError, corrupt, AssertionError, MemoryError, OSError, *_PARSE_ERRORS)
+
+
+def _read_meshio(path: Path, gz: bool, ext: str) -> RawShape:
+    name = str(path)
+    meshio = _import_meshio(name, "reading", ext)
+    fmt = _MESHIO[ext]
+    reader = getattr(meshio, fmt.module).read  # not meshio.read: it calls sys.exit on errors
+    errors = _meshio_read_errors(meshio)
+
+    def read(file: str):
+        try:
+            return reader(file)
+        except errors as exc:
+            msg = str(exc).replace(file, name)
+            raise _err(name, f"cannot read as {fmt.label} with meshio ({type(exc).__name__}"
+                             f"{': ' + msg if msg else ''})") from None
+
+    if gz:  # meshio's readers want a file name: decompress into a temporary file
+        data = _read_bytes(path, True)
+        with tempfile.TemporaryDirectory(prefix="gromov-") as tmp:
+            file = Path(tmp) / f"mesh.{ext}"
+            file.write_bytes(data)
+            m = read(str(file))
+    else:
+        if path.stat().st_size == 0:
+            raise _err(name, "file is empty")
+        m = read(name)
+    pts = np.asarray(m.points)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise _err(name, f"points must have 2 or 3 coordinates, got an array of shape "
+                         f"{pts.shape}")
+    vertices = np.zeros((len(pts), 3))
+    vertices[:, :pts.shape[1]] = pts  # 2-D points: z = 0
+    counts, flat, ignored = [], [], {}
+    for block in m.cells:
+        d = np.asarray(block.data)
+        if block.type in _MESHIO_FACES and d.ndim == 2 and d.shape[1] >= 3:
+            counts.append(np.full(len(d), d.shape[1], np.int64))
+            flat.append(d.astype(np.int64).ravel())
+        else:
+            ignored[block.type] = ignored.get(block.type, 0) + len(d)
+    if ignored:
+        logger.debug("%s: ignored %s cells %s", name, fmt.label, ignored)
+    if not counts:
+        volume = {t: k for t, k in ignored.items() if t.startswith(_MESHIO_VOLUME)}
+        if volume:
+            cells = ", ".join(f"{k} {t}" for t, k in volume.items())
+            raise _err(name, f"volume meshes are not supported (the file has {cells} cells "
+                             "and no triangles): extract the boundary surface first and save it "
+                             "as a triangle mesh")
+        higher = [t for t in ignored if t.startswith(("triangle", "quad"))]
+        if higher:
+            raise _err(name, f"second-order surface cells ({', '.join(higher)}) are not "
+                             "supported; save the mesh with linear triangles")
+        logger.debug("%s: %d points, no triangles: point cloud", name, len(vertices))
+        return RawShape(vertices, None, None, fmt.base, name, name)
+    return RawShape(vertices, np.concatenate(counts), np.concatenate(flat), fmt.base, name,
+                    name)
+
+
+def _write_meshio(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
+    name = str(path)
+    meshio = _import_meshio(name, "writing", ext)
+    fmt = _MESHIO[ext]
+    n = shape.n_vertices
+    if isinstance(shape, Mesh):
+        cells = [("triangle", shape.faces)]
+    elif fmt.module == "medit":  # Medit has no vertex cells (meshio warns and skips them)
+        cells = []
+    else:  # VTU and Gmsh files need at least one cell
+        cells = [("vertex", np.arange(n, dtype=np.int64)[:, None])]
+    mesh = meshio.Mesh(shape.vertices, cells)
+    writer = getattr(meshio, fmt.module).write
+    if not gz:
+        writer(name, mesh, **dict(fmt.write_options))
+        return
+    with tempfile.TemporaryDirectory(prefix="gromov-") as tmp:
+        file = Path(tmp) / f"mesh.{ext}"
+        writer(str(file), mesh, **dict(fmt.write_options))
+        _write_bytes(path, file.read_bytes(), True)
+
+
 # --------------------------------------------------------------------------- bytes <-> files
 def _read_bytes(path: Path, gz: bool, *, allow_empty: bool = False) -> bytes:
     if path.is_dir():
@@ -848,6 +1156,12 @@ FORMATS: dict[str, FileFormat] = {
     "tri": FileFormat("TOSCA .vert/.tri pair (1-based triangles)",
                       lambda p, gz: _read_tosca(p, gz, "tri"),
                       lambda s, p, gz: _write_tosca(s, p, gz, "tri")),
+    "mat": FileFormat("MATLAB v4-v7 MAT-file, TOSCA/SHREC struct with X, Y, Z and 1-based TRIV",
+                      _bytes_reader(_parse_mat), _bytes_writer(_format_mat)),
+    **{ext: FileFormat(f"{fmt.label} via meshio (optional: pip install \"gromov[formats]\")",
+                       lambda p, gz, ext=ext: _read_meshio(p, gz, ext),
+                       lambda s, p, gz, ext=ext: _write_meshio(s, p, gz, ext))
+       for ext, fmt in _MESHIO.items()},
 }
 
 
@@ -951,7 +1265,8 @@ def load(path: str | os.PathLike, *, repair: bool = True,
     Parameters
     ----------
     path : str or os.PathLike
-        ``.off``, ``.obj``, ``.ply``, ``.stl``, ``.vert`` or ``.tri`` (see :data:`FORMATS`),
+        ``.off``, ``.obj``, ``.ply``, ``.stl``, ``.vert``, ``.tri``, ``.mat``, and with
+        meshio installed ``.vtk``, ``.vtu``, ``.msh`` or ``.mesh`` (see :data:`FORMATS`),
         optionally gzip-compressed with a trailing ``.gz`` (``cat0.off.gz``). For a TOSCA
         pair, either ``cat0.vert`` or ``cat0.tri`` loads both files.
     repair : bool, default True
@@ -977,11 +1292,15 @@ def load(path: str | os.PathLike, *, repair: bool = True,
     MeshFileNotFoundError
         The file, or the partner of a ``.vert``/``.tri`` file, does not exist (also a
         ``FileNotFoundError``).
+    MissingDependencyError
+        A ``.vtk``, ``.vtu``, ``.msh`` or ``.mesh`` file and meshio is not installed (also
+        a ``MeshFormatError`` and an ``ImportError``).
     MeshFormatError
         Anything else wrong with the file: a directory, unknown extension, empty file,
         bad header, truncated data, non-numeric values, NaN/inf coordinates, negative or
-        out-of-range face indices, bad gzip data, or no triangle left after repair. The
-        message starts with the file name and says where the problem is.
+        out-of-range face indices, bad gzip data, a MATLAB v7.3 file, a volume mesh, or no
+        triangle left after repair. The message starts with the file name and says where
+        the problem is.
     TypeError
         ``path`` is not a str or path-like.
 
@@ -1017,7 +1336,7 @@ def save(shape: Mesh | PointCloud, path: str | os.PathLike, *,
     ----------
     shape : Mesh or PointCloud
         Written with vertices and faces in their current order (``input_ids`` are not
-        stored). Point clouds can be written as OFF, OBJ and PLY.
+        stored). Point clouds can be written in every format but STL and ``.vert``/``.tri``.
     path : str or os.PathLike
         Output file; a trailing ``.gz`` gzip-compresses it. ``x.vert`` or ``x.tri``
         writes both ``x.vert`` and ``x.tri`` (compressed alike).
@@ -1027,14 +1346,17 @@ def save(shape: Mesh | PointCloud, path: str | os.PathLike, *,
     Notes
     -----
     Text formats (OFF, OBJ, ``.vert``) write coordinates in shortest round-trip
-    (``repr``) form and PLY writes float64, so :func:`load` gives back identical arrays.
-    STL is written binary, float32, and has no vertex numbering: reading it back merges
-    corners and numbers vertices by first appearance in the faces.
+    (``repr``) form; PLY, ``.mat``, VTK, VTU and Gmsh write float64 and Medit 17
+    significant digits, so :func:`load` gives back identical arrays. STL is written
+    binary, float32, and has no vertex numbering: reading it back merges corners and
+    numbers vertices by first appearance in the faces.
 
     Raises
     ------
     TypeError
         ``shape`` is not a :class:`~gromov.mesh.PointCloud`/:class:`~gromov.mesh.Mesh`.
+    MissingDependencyError
+        A meshio format (``.vtk``, ``.vtu``, ``.msh``, ``.mesh``) and meshio is not installed.
     MeshFormatError
         Unknown extension, or a point cloud given for a triangles-only format (STL,
         ``.vert``/``.tri``).
