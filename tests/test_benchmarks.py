@@ -122,3 +122,20 @@ def test_close_humanoids_margin():
     assert ch.margin(D, lab) == 3.0
     D[0, 2] = D[2, 0] = 0.5     # one pair closer than the classes' own: below 1
     assert ch.margin(D, lab) == 0.5
+
+
+def test_readme_tables_are_the_committed_results():
+    """The README's result tables are printed from the committed results files, not typed:
+    each is in the README as printed, and its cells are the files' values."""
+    import json
+
+    rt = _module("readme_tables")
+    readme = (BENCH.parent / "README.md").read_text()
+    for path in rt.DEFAULT:
+        r = json.loads(path.read_text())
+        tab = rt.table(r)
+        assert tab in readme, f"README's table for {path.parent.name} is not what {path} gives"
+        eer_row = next(line for line in tab.splitlines() if line.startswith("| EER, Experiment 1"))
+        cells = [c.strip() for c in eer_row.strip("|").split("|")]
+        assert cells[1] == rt._pct(r["eer.weld.geodesic"]) and cells[2] == rt._pct(r["eer.weld.diffusion"])
+    assert rt._pct(0.0675) == "6.75%" and rt._pct(0.2232) == "22.3%" and rt._pct(0.0) == "0.0%"

@@ -79,15 +79,15 @@ SIGNATURE_STARTS = 32
 #: ``tau``, *measured* with the heat distance at ``RANK_TAU_SCALE * tau`` (a finer scale) on
 #: the same eigenpairs (:meth:`HeatDiffusionSolver.at_tau
 #: <gromov.metrics.diffusion.HeatDiffusionSolver.at_tau>`); see ``match``'s
-#: ``rank_tau_scale``. Chosen in session 16 on validation sets (README, "Recognition at a
-#: finer scale").
+#: ``rank_tau_scale``. Chosen in session 16 on validation sets (docs/notebook.md, "Session 16:
+#: recognition at a finer scale").
 RANK_TAU_SCALE = 0.5
 #: How recognition summarises the residuals of a correspondence (see ``match``'s
 #: ``rank_residual``): ``"log"``, the trimmed RMS of the log ratios of corresponding distances
 #: (:func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), or
 #: ``"difference"``, that of their differences over the larger diameter (before session 17).
-#: Chosen in session 17 on validation sets (README, "Session 17: a multiplicative distortion
-#: for recognition").
+#: Chosen in session 17 on validation sets (docs/notebook.md, "Session 17: a multiplicative
+#: distortion for recognition").
 RANK_RESIDUAL = "log"
 RANK_RESIDUALS = ("difference", "log")
 #: The floor of :func:`gromov.gmds.log_ratio_residuals` in recognition, a fraction of the larger
@@ -431,7 +431,7 @@ def _trimmed_descent(dx, DY, img, keep: float, rounds: int, R, C):
     all vertices of Y) on the best-fitting ``ceil(keep m)`` samples alone, then places the
     others greedily given them; it stops after ``rounds`` rounds or when nothing moves. A
     change of topology moves whole rows of the distances (a weld changes a nearby point's
-    diffusion distance to every point: README, "What a weld does to the diffusion metric"),
+    diffusion distance to every point: docs/notebook.md, "What a weld does to the diffusion metric"),
     so the samples near it are set aside instead of pulling the others' images.
     """
     m = len(dx)
@@ -986,7 +986,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         turns it off (as before session 13). Chosen on the held-out classes (session 13,
         ``benchmarks/results/heldout-s13.json``): diffusion d(C, C0) clean / welds / 10 / 20
         holes 0.025 / 0.035 / 0.018 / 0.027 -> 0.021 / 0.023 / 0.011 / 0.020, geodesic welds
-        0.066 -> 0.059 (rest unchanged); weights 0.25 / 0.5 / 2 were mixed (README).
+        0.066 -> 0.059 (rest unchanged); weights 0.25 / 0.5 / 2 were mixed (docs/notebook.md, "Session 13").
     rank_tau_scale : float, optional
         With the heat-kernel diffusion metric: ``ranking_distance`` is the final
         correspondence's trimmed distortion measured with the heat distance at this times the

@@ -80,7 +80,7 @@ TRIM_KEEP = 0.8
 """Fraction of the pairs the trimmed distortion keeps (:func:`trimmed_rms`).
 
 Chosen on the synthetic set and TOSCA classes the paper's experiments do not use (horse,
-centaur, wolf, michael), before the paper's classes were measured with it: see the README,
+centaur, wolf, michael), before the paper's classes were measured with it: see docs/notebook.md,
 "Recognition with a trimmed distortion"."""
 
 
@@ -127,7 +127,7 @@ def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
     whole rows, which is how a weld moves the heat-kernel diffusion distance (between far
     points :math:`d_t^2 \approx k_{2t}(x,x) + k_{2t}(y,y)`, and a weld changes the return
     probability of the points near it). ``keep = 1`` is the RMS of the off-diagonal entries.
-    Not used by :func:`gromov.match` or recognition; measured in ``benchmarks/`` (README,
+    Not used by :func:`gromov.match` or recognition; measured in ``benchmarks/`` (docs/notebook.md,
     "What a weld does to the diffusion metric").
     """
     e = np.asarray(e, dtype=float)
