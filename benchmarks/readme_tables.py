@@ -13,7 +13,7 @@ import argparse
 import json
 from pathlib import Path
 
-from gromov.experiments.report import PAPER, other_classes
+from gromov.experiments.report import PAPER, errors_text, other_classes
 
 HERE = Path(__file__).resolve().parent / "results"
 DEFAULT = [HERE / "reproduce-tosca" / "results.json", HERE / "reproduce-heldout" / "results.json",
@@ -85,16 +85,12 @@ def table(r: dict) -> str:
 
 
 def errors(r: dict) -> str:
-    """Where the diffusion errors are at its EER threshold, per experiment."""
+    """Where the diffusion errors are at its EER threshold, per experiment (as the report says)."""
     out = []
     for exp, name in EXPERIMENTS:
         e = r["recognition"].get(exp, {}).get("diffusion", {}).get("errors_at_eer")
-        if not e:
-            continue
-        fa = ", ".join(f"{k} {a} of {b}" for k, (a, b) in e["false_accept"].items()) or "none"
-        fr = ", ".join(f"{k} {a} of {b}" for k, (a, b) in e["false_reject"].items()) or "none"
-        out.append(f"- {name}, diffusion, at its EER threshold: false acceptances {fa}; "
-                   f"rejections {fr}.")
+        if e:
+            out.append(f"- {name}, diffusion, at its EER threshold: {errors_text(e)}.")
     return "\n".join(out)
 
 

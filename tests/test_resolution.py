@@ -141,3 +141,42 @@ def test_projection_matches_brute_force_on_a_simplified_tosca_pose(tosca_cat0, c
     rebuilt = cat_working.interpolate(cat_working.mesh.vertices)[ids]
     np.testing.assert_allclose(np.linalg.norm(rebuilt - tosca_cat0.vertices[ids], axis=1), truth,
                                rtol=1e-9, atol=1e-9)
+
+
+def test_projection_onto_a_degenerate_face_is_on_its_segment():
+    """A face with two coincident corners is the segment it spans: the point found is the
+    segment's closest point and the distance is measured to it."""
+    from gromov._project import closest_point_barycentric, project_points
+
+    a, c = np.zeros(3), np.array([1.0, 0.0, 0.0])
+    u, v, w = closest_point_barycentric(np.array([0.5, 1.0, 0.0]), a, a.copy(), c)
+    np.testing.assert_allclose(u * a + v * a + w * c, [0.5, 0.0, 0.0], atol=1e-15)
+    # collinear corners, the point beyond the far end
+    u, v, w = closest_point_barycentric(np.array([3.0, 1.0, 0.0]), a, c, 2 * c)
+    np.testing.assert_allclose(u * a + v * c + w * 2 * c, [2.0, 0.0, 0.0], atol=1e-15)
+    mesh = gromov.Mesh(np.array([[0.0, 0, 0], [0, 0, 0], [1, 0, 0]]), np.array([[0, 1, 2]]))
+    face, bary, dist = project_points(np.array([[0.5, 1.0, 0.0]]), mesh)
+    np.testing.assert_allclose(bary @ mesh.vertices[mesh.faces[face[0]]], [[0.5, 0.0, 0.0]], atol=1e-15)
+    np.testing.assert_allclose(dist, [1.0])
+
+
+def test_projection_errors_and_tree_reuse():
+    from gromov._project import project_points, surface_tree
+
+    m = icosphere(1)
+    tree = surface_tree(m)
+    p = np.array([[0.0, 0.0, 2.0], [0.3, -0.2, 0.1]])
+    f1, b1, d1 = project_points(p, m)
+    f2, b2, d2 = project_points(p, m, tree=tree)
+    np.testing.assert_array_equal(f1, f2)
+    np.testing.assert_allclose(d1, d2)
+    assert d1[0] == pytest.approx(1.0, abs=0.1) and (b1 >= 0).all()
+    face, bary, dist = project_points(np.zeros((0, 3)), m, tree=tree)
+    assert face.shape == (0,) and bary.shape == (0, 3) and dist.shape == (0,)
+    with pytest.raises(ValueError, match=r"shape \(p, 3\), got \(3,\)"):
+        project_points(np.zeros(3), m)
+    with pytest.raises(ValueError, match="2 points have NaN or infinite coordinates, first point 1"):
+        project_points(np.array([[0.0, 0, 0], [np.nan, 0, 0], [np.inf, 0, 0]]), m, tree=tree)
+    moved = gromov.Mesh(m.vertices + [5.0, 0.0, 0.0], m.faces)
+    with pytest.raises(ValueError, match="tree was built for"):
+        project_points(p, moved, tree=tree)

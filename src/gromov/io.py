@@ -830,17 +830,12 @@ def _shape_str(a: np.ndarray) -> str:
 
 def _mat_struct(value) -> tuple[dict, int] | None:
     """``(fields of the first element, number of elements)`` if ``value`` is a MATLAB struct
-    as scipy loads it (``mat_struct``, an object array of them, a record array or a dict),
-    else ``None``."""
-    if isinstance(value, dict):
-        return value, 1
-    if hasattr(value, "_fieldnames"):  # scipy.io.matlab.mat_struct (struct_as_record=False)
+    as ``loadmat(..., struct_as_record=False)`` gives it (a ``mat_struct``, or an object
+    array of them), else ``None``."""
+    if hasattr(value, "_fieldnames"):  # scipy.io.matlab.mat_struct
         return {f: getattr(value, f) for f in value._fieldnames}, 1
     if not isinstance(value, np.ndarray) or value.size == 0:
         return None
-    if value.dtype.names is not None:  # record array (struct_as_record=True)
-        first = value.reshape(-1)[0]
-        return {f: first[f] for f in value.dtype.names}, value.size
     if value.dtype == object and all(hasattr(x, "_fieldnames") for x in value.flat):
         fields, _ = _mat_struct(value.reshape(-1)[0])
         return fields, value.size
@@ -871,7 +866,7 @@ def _parse_mat(data: bytes, name: str) -> RawShape:
         raise _mat_v73(name)
     try:
         # squeeze_me=False keeps shapes ((n, 1) columns, a 1 x 3 TRIV); structs come as
-        # object arrays of mat_struct, but _mat_struct also takes the other representations
+        # object arrays of mat_struct
         content = loadmat(BytesIO(data), squeeze_me=False, struct_as_record=False)
     except NotImplementedError:  # scipy's answer to a v7.3 header
         raise _mat_v73(name) from None
