@@ -150,12 +150,6 @@ def test_locate_keeps_points_on_an_unsimplified_input():
     f, bb, _ = t.locate(corner)
     on = SurfacePoints(f, bb).positions(grid_mesh.vertices, grid_mesh.faces)
     assert np.allclose(on, t.mesh.vertices[t.mesh.faces[0, 0]])
-    # and the tree it builds for that is not carried into a pickle (libigl's does not pickle)
-    import pickle
-
-    assert t._tree is not None
-    u = pickle.loads(pickle.dumps(t))
-    assert u._tree is None and np.array_equal(u.locate(corner)[0], f)
 
 
 def test_sample_trimmed_rms_sets_aside_whole_samples():

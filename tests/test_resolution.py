@@ -91,62 +91,67 @@ def test_tosca_poses_simplify_identically(data_dir, tosca_cat0, cat_working):
     assert np.median(w1.source_residual) < 0.2 * w1.mesh.mean_edge_length
 
 
-def _closest_by_brute_force(points, mesh):
-    """Distance to the surface, every face tried (the definition, for checking)."""
+def test_each_input_vertex_is_owned_by_a_working_vertex(cat_working):
+    """Every input vertex was collapsed into one working vertex (working vertices own
+    themselves), is located on a face around that owner or its neighbours, and its nearest
+    working vertex lies within a few edges of the owner along the surface."""
+    import scipy.sparse.csgraph as cg
+
+    w = cat_working
+    np.testing.assert_array_equal(w.source_owner[w.vertex_ids], np.arange(w.n_vertices))
+    ptr, ids = w.owned()
+    assert ptr[-1] == w.source.n_vertices and np.array_equal(np.sort(ids), np.arange(w.source.n_vertices))
+    ring_ptr, ring = gromov.resolution.ring_candidates(w.mesh, w.source_owner)
+    corners = w.mesh.faces[w.source_face]
+    for i in np.random.default_rng(0).choice(w.source.n_vertices, 300, replace=False):
+        assert np.isin(corners[i], ring[ring_ptr[i]:ring_ptr[i + 1]]).any()
+    hops = cg.shortest_path(w.mesh.adjacency > 0, unweighted=True,
+                            indices=np.unique(w.source_owner[:2000]))
+    pos = np.searchsorted(np.unique(w.source_owner[:2000]), w.source_owner[:2000])
+    assert hops[pos, w.source_nearest[:2000]].max() <= 2
+
+
+def test_located_vertices_stay_on_their_own_sheet():
+    """Two parallel sheets 0.3 apart, the upper one coarse (simplified): a vertex of the upper
+    sheet is closer in space to the lower sheet's working surface than to its own where
+    the upper sheet's working triangles cut the corner, but it is located on its own sheet."""
+    from gromov._project import project_among
+
+    # lower sheet: one triangle; upper sheet: one triangle 0.3 above, whose corner vertex 3
+    # owns the point; the point sits 0.25 below the upper triangle's plane, i.e. 0.05 above
+    # the lower one
+    V = np.array([[0.0, 0, 0], [4, 0, 0], [0, 4, 0], [0, 0, 0.3], [4, 0, 0.3], [0, 4, 0.3]])
+    mesh = gromov.Mesh(V, np.array([[0, 1, 2], [3, 4, 5]]))
+    p = np.array([[1.0, 1.0, 0.05]])
+    face, bary, dist = project_among(p, mesh, np.array([0, 1]), np.array([3]))
+    assert face[0] == 1 and dist[0] == pytest.approx(0.25)
+    face, _, dist = project_among(p, mesh, np.array([0, 2]), np.array([3, 0]))
+    assert face[0] == 0 and dist[0] == pytest.approx(0.05)   # given both, the closer one
+
+
+def test_projection_matches_brute_force_among_its_candidates(tosca_cat0, cat_working):
+    """The located point is the closest point of the faces around the owner and its
+    neighbours (checked against every one of those faces), and face + coordinates rebuild it."""
     from gromov._project import closest_point_barycentric
 
-    V, F = mesh.vertices, mesh.faces
-    out = np.empty(len(points))
-    for i, p in enumerate(points):
-        best = np.inf
-        for a, b, c in V[F]:
-            u, v, w = closest_point_barycentric(p, a, b, c)
-            best = min(best, np.linalg.norm(u * a + v * b + w * c - p))
-        out[i] = best
-    return out
-
-
-def test_projection_is_exact_among_long_thin_triangles():
-    """The closest point of a long, thin triangle whose corners are all farther than another
-    sheet's vertices is found (a search around the nearest vertices misses it: the 4
-    nearest here are the patch's, and their faces are 0.5 away)."""
-    from gromov._project import project_points
-
-    big = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [5.0, -8.0, 0.0]]
-    patch = [[4.5 + dx, -0.3 + dy, 0.5] for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1))]
-    mesh = gromov.Mesh(np.array(big + patch), np.array([[0, 2, 1], [3, 4, 5], [4, 6, 5]]))
-    p = np.array([[5.0, -0.48, 0.0], [5.0, -0.48, 0.1]])
-    face, bary, dist = project_points(p, mesh)
-    np.testing.assert_array_equal(face, [0, 0])
-    np.testing.assert_allclose(dist, [0.0, 0.1], atol=1e-12)
-    np.testing.assert_allclose(bary @ mesh.vertices[mesh.faces[0]], [[5.0, -0.48, 0.0]] * 2, atol=1e-12)
-
-
-def test_projection_matches_brute_force_on_a_simplified_tosca_pose(tosca_cat0, cat_working):
-    """Input vertices located on the 3,000-vertex cat: the reported residual is the distance to
-    the closest point over all faces, and face + coordinates rebuild that point. Checked on the
-    hard cases: vertices whose face has none of their 4 nearest working vertices as a corner
-    (about 1% of the cat's; a search among the faces around those vertices cannot find it)."""
-    from scipy.spatial import cKDTree
-
-    _, near = cKDTree(cat_working.mesh.vertices).query(tosca_cat0.vertices, k=4)
-    corners = cat_working.mesh.faces[cat_working.source_face]
-    hard = np.flatnonzero(~(corners[:, :, None] == near[:, None, :]).any(axis=(1, 2)))
-    assert 0.002 * tosca_cat0.n_vertices < len(hard) < 0.05 * tosca_cat0.n_vertices
-    rng = np.random.default_rng(0)
-    ids = np.concatenate([rng.choice(hard, 40, replace=False),
-                          rng.choice(tosca_cat0.n_vertices, 20, replace=False)])
-    truth = _closest_by_brute_force(tosca_cat0.vertices[ids], cat_working.mesh)
-    np.testing.assert_allclose(cat_working.source_residual[ids], truth, rtol=1e-9, atol=1e-9)
-    rebuilt = cat_working.interpolate(cat_working.mesh.vertices)[ids]
-    np.testing.assert_allclose(np.linalg.norm(rebuilt - tosca_cat0.vertices[ids], axis=1), truth,
-                               rtol=1e-9, atol=1e-9)
+    w = cat_working
+    ring_ptr, ring = gromov.resolution.ring_candidates(w.mesh, w.source_owner)
+    vf_ptr, vf = w.mesh.vertex_faces
+    for i in np.random.default_rng(1).choice(tosca_cat0.n_vertices, 200, replace=False):
+        p = tosca_cat0.vertices[i]
+        faces = np.unique(np.concatenate([vf[vf_ptr[v]:vf_ptr[v + 1]] for v in ring[ring_ptr[i]:ring_ptr[i + 1]]]))
+        best = min(np.linalg.norm(np.array(closest_point_barycentric(p, *w.mesh.vertices[w.mesh.faces[f]]))
+                                  @ w.mesh.vertices[w.mesh.faces[f]] - p) for f in faces)
+        assert w.source_residual[i] == pytest.approx(best, rel=1e-9, abs=1e-12)
+    rebuilt = w.interpolate(w.mesh.vertices)
+    np.testing.assert_allclose(np.linalg.norm(rebuilt - tosca_cat0.vertices, axis=1), w.source_residual,
+                               atol=1e-9)
 
 
 def test_projection_onto_a_degenerate_face_is_on_its_segment():
     """A face with two coincident corners is the segment it spans: the point found is the
     segment's closest point and the distance is measured to it."""
-    from gromov._project import closest_point_barycentric, project_points
+    from gromov._project import closest_point_barycentric, project_among
 
     a, c = np.zeros(3), np.array([1.0, 0.0, 0.0])
     u, v, w = closest_point_barycentric(np.array([0.5, 1.0, 0.0]), a, a.copy(), c)
@@ -155,28 +160,23 @@ def test_projection_onto_a_degenerate_face_is_on_its_segment():
     u, v, w = closest_point_barycentric(np.array([3.0, 1.0, 0.0]), a, c, 2 * c)
     np.testing.assert_allclose(u * a + v * c + w * 2 * c, [2.0, 0.0, 0.0], atol=1e-15)
     mesh = gromov.Mesh(np.array([[0.0, 0, 0], [0, 0, 0], [1, 0, 0]]), np.array([[0, 1, 2]]))
-    face, bary, dist = project_points(np.array([[0.5, 1.0, 0.0]]), mesh)
+    face, bary, dist = project_among(np.array([[0.5, 1.0, 0.0]]), mesh, np.array([0, 1]), np.array([2]))
     np.testing.assert_allclose(bary @ mesh.vertices[mesh.faces[face[0]]], [[0.5, 0.0, 0.0]], atol=1e-15)
     np.testing.assert_allclose(dist, [1.0])
 
 
-def test_projection_errors_and_tree_reuse():
-    from gromov._project import project_points, surface_tree
+def test_projection_errors():
+    from gromov._project import project_among
 
     m = icosphere(1)
-    tree = surface_tree(m)
-    p = np.array([[0.0, 0.0, 2.0], [0.3, -0.2, 0.1]])
-    f1, b1, d1 = project_points(p, m)
-    f2, b2, d2 = project_points(p, m, tree=tree)
-    np.testing.assert_array_equal(f1, f2)
-    np.testing.assert_allclose(d1, d2)
-    assert d1[0] == pytest.approx(1.0, abs=0.1) and (b1 >= 0).all()
-    face, bary, dist = project_points(np.zeros((0, 3)), m, tree=tree)
-    assert face.shape == (0,) and bary.shape == (0, 3) and dist.shape == (0,)
     with pytest.raises(ValueError, match=r"shape \(p, 3\), got \(3,\)"):
-        project_points(np.zeros(3), m)
+        project_among(np.zeros(3), m, np.array([0, 1]), np.array([0]))
     with pytest.raises(ValueError, match="2 points have NaN or infinite coordinates, first point 1"):
-        project_points(np.array([[0.0, 0, 0], [np.nan, 0, 0], [np.inf, 0, 0]]), m, tree=tree)
-    moved = gromov.Mesh(m.vertices + [5.0, 0.0, 0.0], m.faces)
-    with pytest.raises(ValueError, match="tree was built for"):
-        project_points(p, moved, tree=tree)
+        project_among(np.array([[0.0, 0, 0], [np.nan, 0, 0], [np.inf, 0, 0]]), m,
+                      np.array([0, 1, 2, 3]), np.array([0, 0, 0]))
+    with pytest.raises(ValueError, match="cand_ptr must be"):
+        project_among(np.zeros((2, 3)), m, np.array([0, 1]), np.array([0]))
+    with pytest.raises(ValueError, match="candidate vertex ids must be in"):
+        project_among(np.zeros((1, 3)), m, np.array([0, 1]), np.array([m.n_vertices]))
+    with pytest.raises(ValueError, match="point 0 has no candidate vertex"):
+        project_among(np.zeros((1, 3)), m, np.array([0, 0]), np.array([], dtype=np.int64))

@@ -190,7 +190,12 @@ def _replay(V, F, collapses, cap, min_cos, min_quality):
                 alive[a] = False
                 alias[a] = b
                 applied[c] = True
-    return alive, F[face_alive], applied
+    for v in range(n):  # each vertex to the vertex it was merged into, chains followed
+        r = v
+        while alias[r] != r:
+            r = alias[r]
+        alias[v] = r
+    return alive, F[face_alive], applied, alias
 
 
 def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndarray, *,
@@ -216,6 +221,10 @@ def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndar
         Remaining faces, in input vertex indices.
     applied : ndarray of bool, shape (c,)
         Which collapses were applied.
+    owner : ndarray of int, shape (n,)
+        The remaining vertex each vertex was merged into (itself if it remains). A collapse
+        may be applied the other way round (keeping ``remove``) when that one is legal and
+        the proposed one is not, so ``applied`` alone does not say which.
     """
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)

@@ -1,15 +1,12 @@
-"""Closest point on a triangle mesh, used to map points between a mesh and its working mesh.
-
-The search is libigl's axis-aligned bounding-box tree (``igl.AABB``), which is exact; the
-barycentric coordinates of the point found are computed here (compiled kernel).
-"""
+"""Closest point on a part of a triangle mesh, used to map points between a mesh and its
+working mesh (compiled kernels)."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-__all__ = ["SurfaceTree", "closest_point_barycentric", "project_points", "surface_tree"]
+__all__ = ["closest_point_barycentric", "project_among"]
 
 
 @njit(cache=True, inline="always")
@@ -95,75 +92,57 @@ def closest_point_barycentric(p, a, b, c):
 
 
 @njit(cache=True)
-def _bary(points, V, F, face):
-    # serial: 0.6 ms for 50,000 points, and safe in forked worker processes (where numba's
-    # thread pool must not be started again)
+def _project_among(points, V, F, vf_ptr, vf_ids, cand_ptr, cand_ids):
+    """Per point i, the closest point among the faces incident to the vertices
+    ``cand_ids[cand_ptr[i]:cand_ptr[i + 1]]``; serial (cheap, and safe in forked workers)."""
     n = points.shape[0]
+    face = np.empty(n, np.int64)
     bary = np.empty((n, 3))
     dist = np.empty(n)
     for i in range(n):
-        f = face[i]
-        a, b, c = V[F[f, 0]], V[F[f, 1]], V[F[f, 2]]
-        u, v, w = closest_point_barycentric(points[i], a, b, c)
-        bary[i, 0], bary[i, 1], bary[i, 2] = u, v, w
-        d = 0.0
-        for t in range(3):
-            d += (u * a[t] + v * b[t] + w * c[t] - points[i, t]) ** 2
-        dist[i] = np.sqrt(d)
-    return bary, dist
+        p = points[i]
+        best = np.inf
+        bf = -1
+        bu = bv = bw = 0.0
+        for k in range(cand_ptr[i], cand_ptr[i + 1]):
+            vtx = cand_ids[k]
+            for j in range(vf_ptr[vtx], vf_ptr[vtx + 1]):
+                f = vf_ids[j]
+                a, b, c = V[F[f, 0]], V[F[f, 1]], V[F[f, 2]]
+                u, v, w = closest_point_barycentric(p, a, b, c)
+                d = 0.0
+                for t in range(3):
+                    d += (u * a[t] + v * b[t] + w * c[t] - p[t]) ** 2
+                if d < best:
+                    best, bf, bu, bv, bw = d, f, u, v, w
+        face[i] = bf
+        bary[i, 0], bary[i, 1], bary[i, 2] = bu, bv, bw
+        dist[i] = np.sqrt(best)
+    return face, bary, dist
 
 
-class SurfaceTree:
-    """libigl's bounding-box tree over the faces of one mesh (:func:`surface_tree`).
-
-    Attributes
-    ----------
-    mesh : Mesh
-        The mesh it was built for; :func:`project_points` refuses any other.
-    """
-
-    def __init__(self, mesh):
-        import igl
-
-        self.mesh = mesh
-        self._V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-        self._F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-        if len(self._F) == 0:
-            raise ValueError("cannot project onto a mesh without faces")
-        self._aabb = igl.AABB()
-        self._aabb.init(self._V, self._F)
-
-    def __repr__(self) -> str:
-        return f"SurfaceTree({self.mesh!r})"
-
-
-def surface_tree(mesh) -> SurfaceTree:
-    """The bounding-box tree of ``mesh`` for :func:`project_points`: build it once per mesh
-    when projecting onto the same mesh many times."""
-    return SurfaceTree(mesh)
-
-
-def project_points(points: np.ndarray, mesh, *, tree: SurfaceTree | None = None):
-    """Project points onto ``mesh``: the closest point of the surface, exactly.
+def project_among(points: np.ndarray, mesh, cand_ptr: np.ndarray, cand_ids: np.ndarray):
+    """Project each point onto the part of ``mesh`` it belongs to: the closest point among the
+    faces incident to its candidate vertices (CSR: point i's are
+    ``cand_ids[cand_ptr[i]:cand_ptr[i + 1]]``).
 
     Returns ``(face, bary, dist)``: ``(p,)`` face index, ``(p, 3)`` barycentric coordinates
     (non-negative, summing to one) and ``(p,)`` Euclidean distance from each point to the
-    surface point ``bary @ vertices[faces[face]]``. Where several faces are equally close (a
-    point closest to an edge or a vertex) any of them may be returned; the surface point is
-    the same. The closest face is found in libigl's axis-aligned bounding-box tree
-    (``igl.AABB``); ``tree`` is a :func:`surface_tree` of this ``mesh`` to reuse (built here
-    when not given).
+    surface point ``bary @ vertices[faces[face]]``. Ties (a point closest to an edge or a
+    vertex) go to the first face found; the surface point is the same.
 
-    Until session 18 this took the nearest point among the faces around the 4 nearest
-    vertices, which among long, thin triangles can miss the closest face: on TOSCA poses
-    simplified to 3,000 vertices it missed for 0.6-0.9% of the input vertices, by up to
-    1.1% of the bounding-box diagonal.
+    The candidates say *where on the surface* a point may go, so that a point is never put on
+    another sheet that happens to pass closer in space (a hand resting on a thigh): the
+    globally closest point of a working mesh is not where an input vertex of the hand
+    belongs. :func:`gromov.resolution.simplify` gives each input vertex the working vertex it
+    was collapsed into and that vertex's neighbours.
 
     Raises
     ------
     ValueError
-        ``points`` is not ``(p, 3)`` or holds NaN or infinite coordinates; ``mesh`` has no
-        faces; ``tree`` was built for another mesh.
+        ``points`` is not ``(p, 3)`` or holds NaN or infinite coordinates; the candidate
+        arrays do not fit (``cand_ptr`` of length p + 1, non-decreasing, ids of vertices with
+        at least one face for every point).
     """
     points = np.ascontiguousarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
@@ -173,12 +152,18 @@ def project_points(points: np.ndarray, mesh, *, tree: SurfaceTree | None = None)
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"{int(bad.sum())} points have NaN or infinite coordinates, first "
                          f"point {i}: {points[i].tolist()}")
-    if tree is None:
-        tree = surface_tree(mesh)
-    elif tree.mesh is not mesh:
-        raise ValueError(f"tree was built for {tree.mesh!r}, not for {mesh!r}")
-    if len(points) == 0:
-        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
-    _, face, _ = tree._aabb.squared_distance(tree._V, tree._F, points)
-    bary, dist = _bary(points, tree._V, tree._F, np.asarray(face, dtype=np.int64))
-    return np.asarray(face, dtype=np.int64), bary, dist
+    ptr = np.ascontiguousarray(cand_ptr, dtype=np.int64)
+    ids = np.ascontiguousarray(cand_ids, dtype=np.int64)
+    if ptr.shape != (len(points) + 1,) or ptr[0] != 0 or (np.diff(ptr) < 0).any() or ptr[-1] != len(ids):
+        raise ValueError(f"cand_ptr must be a non-decreasing (p + 1,) array from 0 to "
+                         f"len(cand_ids) = {len(ids)}, got shape {ptr.shape}")
+    if len(ids) and (ids.min() < 0 or ids.max() >= mesh.n_vertices):
+        raise ValueError(f"candidate vertex ids must be in 0..{mesh.n_vertices - 1}")
+    vf_ptr, vf_ids = mesh.vertex_faces
+    face, bary, dist = _project_among(points, np.ascontiguousarray(mesh.vertices, dtype=np.float64),
+                                      np.ascontiguousarray(mesh.faces, dtype=np.int64),
+                                      vf_ptr, vf_ids, ptr, ids)
+    if len(face) and face.min() < 0:
+        i = int(np.argmin(face))
+        raise ValueError(f"point {i} has no candidate vertex with a face")
+    return face, bary, dist

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _gmds_kernel as _kernel
-from ._project import project_points, surface_tree
+from ._project import project_among
 from .errors import GromovWarning
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
                    norm_value, parse_norm, trimmed_rms)
@@ -27,7 +27,7 @@ from .mesh import Mesh, as_mesh
 from .metrics import metric_solver
 from .metrics.diffusion import correspondence_options
 from .orientation import orientation_agreements, outward_normals
-from .resolution import WorkingMesh, working_mesh
+from .resolution import WorkingMesh, ring_candidates, working_mesh
 from .sampling import farthest_point_sampling
 
 __all__ = ["ShapeMetric", "MatchResult", "match"]
@@ -134,16 +134,11 @@ class ShapeMetric:
         self._samples: dict = {}
         self._descriptors: np.ndarray | None = None
         self._diameter: float | None = None
-        self._tree = None
+        self._owned = None
         self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
         self._symmetry: dict = {}
         self._ranking: dict = {}
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_tree"] = None  # libigl's tree does not pickle; rebuilt on first use
-        return state
 
     @property
     def mesh(self) -> Mesh:
@@ -257,8 +252,11 @@ class ShapeMetric:
 
         Where the working mesh is the input mesh itself (not simplified: same vertices and
         faces), the points are kept as they are (same face and coordinates, not recomputed);
-        else they are projected onto the input (:func:`gromov._project.project_points`, the
-        closest point of the input surface)."""
+        else each is projected onto its own part of the input: the closest point among the
+        input faces around the input vertices that the corners of its working face, and
+        their neighbours, own (:attr:`WorkingMesh.source_owner`,
+        :func:`gromov._project.project_among`) -- never onto another sheet that passes
+        closer in space."""
         if self._same_as_input is None:
             m, s = self.mesh, self.input
             self._same_as_input = bool(m.n_vertices == s.n_vertices and np.array_equal(m.faces, s.faces)
@@ -267,9 +265,19 @@ class ShapeMetric:
             face, bary = np.asarray(pts.face, dtype=np.int64), np.asarray(pts.bary, dtype=np.float64)
         else:
             pos = pts.positions(self.mesh.vertices, self.mesh.faces)
-            if self._tree is None:  # per shape, not per match
-                self._tree = surface_tree(self.input)
-            face, bary, _ = project_points(pos, self.input, tree=self._tree)
+            if self._owned is None:  # per shape, not per match
+                self._owned = self.working.owned()
+            own_ptr, own_ids = self._owned
+            corners = self.mesh.faces[np.asarray(pts.face, dtype=np.int64)]   # (p, 3)
+            ring_ptr, ring = ring_candidates(self.mesh, corners.ravel())
+            cand = []
+            for i in range(len(corners)):
+                near = np.unique(ring[ring_ptr[3 * i]:ring_ptr[3 * i + 3]])
+                cand.append(np.concatenate([own_ids[own_ptr[w]:own_ptr[w + 1]] for w in near]))
+            ptr = np.zeros(len(cand) + 1, dtype=np.int64)
+            np.cumsum([len(c) for c in cand], out=ptr[1:])
+            ids = np.concatenate(cand) if cand else np.zeros(0, np.int64)
+            face, bary, _ = project_among(pos, self.input, ptr, ids)
         vertex = self.input.faces[face, np.argmax(bary, axis=1)]
         return face, bary, self.input.input_ids[vertex]
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._project import project_points
+from ._project import project_among
 from .mesh import Mesh, MeshError
 
 __all__ = ["WorkingMesh", "simplify", "working_mesh"]
@@ -52,7 +52,13 @@ class WorkingMesh:
         Working vertex nearest to each source vertex (along the surface: the corner of
         ``source_face`` with the largest barycentric weight).
     source_residual : ndarray, shape (n_source,)
-        Euclidean distance from each source vertex to its closest working-mesh point.
+        Euclidean distance from each source vertex to its located point.
+    source_owner : ndarray, shape (n_source,)
+        Working vertex each source vertex was collapsed into (a working vertex owns itself).
+        Each source vertex is located (``source_face``, ``source_bary``) at the closest point
+        of the faces around its owner and the owner's neighbours: on its own part of the
+        surface, never on another sheet that passes closer in space (a hand resting on a
+        thigh). The owners do not depend on the pose, so :meth:`transfer` keeps them.
     """
 
     mesh: Mesh
@@ -62,6 +68,7 @@ class WorkingMesh:
     source_bary: np.ndarray
     source_nearest: np.ndarray
     source_residual: np.ndarray
+    source_owner: np.ndarray
 
     @property
     def n_vertices(self) -> int:
@@ -107,11 +114,33 @@ class WorkingMesh:
                             f"{self.source.n_vertices} vertices, other has {other.n_vertices}")
         work = Mesh(other.vertices[self.vertex_ids], self.mesh.faces,
                     input_ids=other.input_ids[self.vertex_ids])
-        return _locate(work, other, self.vertex_ids)
+        return _locate(work, other, self.vertex_ids, self.source_owner)
+
+    def owned(self) -> tuple[np.ndarray, np.ndarray]:
+        """CSR ``(indptr, source_ids)``: the source vertices working vertex i owns are
+        ``source_ids[indptr[i]:indptr[i + 1]]`` (itself among them)."""
+        order = np.argsort(self.source_owner, kind="stable")
+        indptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(self.source_owner, minlength=self.n_vertices), out=indptr[1:])
+        return indptr, order.astype(np.int64)
 
 
-def _locate(work: Mesh, source: Mesh, vertex_ids: np.ndarray) -> WorkingMesh:
-    face, bary, dist = project_points(source.vertices, work)
+def ring_candidates(mesh: Mesh, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(indptr, ids)`` of each centre vertex followed by its neighbours in ``mesh``."""
+    centres = np.asarray(centres, dtype=np.int64)
+    adj = mesh.adjacency
+    deg = np.diff(adj.indptr)[centres]
+    ptr = np.zeros(len(centres) + 1, dtype=np.int64)
+    np.cumsum(deg + 1, out=ptr[1:])
+    ids = np.empty(ptr[-1], dtype=np.int64)
+    ids[ptr[:-1]] = centres
+    within = np.arange(int(deg.sum())) - np.repeat(np.cumsum(deg) - deg, deg)
+    ids[np.repeat(ptr[:-1] + 1, deg) + within] = adj.indices[np.repeat(adj.indptr[centres], deg) + within]
+    return ptr, ids
+
+
+def _locate(work: Mesh, source: Mesh, vertex_ids: np.ndarray, owner: np.ndarray) -> WorkingMesh:
+    face, bary, dist = project_among(source.vertices, work, *ring_candidates(work, owner))
     # working vertices are source vertices: locate them on one of their own faces exactly
     indptr, fids = work.vertex_faces
     own = fids[indptr[:-1]]
@@ -120,9 +149,10 @@ def _locate(work: Mesh, source: Mesh, vertex_ids: np.ndarray) -> WorkingMesh:
     bary[vertex_ids] = np.eye(3)[corner]
     dist[vertex_ids] = 0.0
     nearest = work.faces[face, np.argmax(bary, axis=1)]
-    for a in (face, bary, nearest, dist, vertex_ids):
+    owner = np.array(owner, dtype=np.int64)
+    for a in (face, bary, nearest, dist, vertex_ids, owner):
         a.flags.writeable = False
-    return WorkingMesh(work, source, vertex_ids, face, bary, nearest, dist)
+    return WorkingMesh(work, source, vertex_ids, face, bary, nearest, dist, owner)
 
 
 def _corner_angles(V, F):
@@ -250,7 +280,7 @@ def simplify(mesh: Mesh, n_vertices: int, *, aggressiveness: float = 7.0,
     if n_vertices >= mesh.n_vertices:
         ids = np.arange(mesh.n_vertices)
         work = Mesh(mesh.vertices, mesh.faces, input_ids=mesh.input_ids)
-        return _locate(work, mesh, ids)
+        return _locate(work, mesh, ids, ids)
 
     import fast_simplification
 
@@ -260,6 +290,7 @@ def simplify(mesh: Mesh, n_vertices: int, *, aggressiveness: float = 7.0,
     # the topology or flip a face at the snapped positions; repeat on the result while the
     # skipped collapses leave us more than 1% above the target.
     survivors = np.arange(mesh.n_vertices)
+    owner = np.arange(mesh.n_vertices)  # per input vertex: the current vertex it collapsed into
     faces = mesh.faces
     for _ in range(12):
         cur_v = mesh.vertices[survivors]
@@ -267,20 +298,22 @@ def simplify(mesh: Mesh, n_vertices: int, *, aggressiveness: float = 7.0,
         _, _, collapses = fast_simplification.simplify(
             np.array(cur_v), faces.astype(np.int32), target_count=target_faces,
             agg=aggressiveness, return_collapses=True)
-        alive, new_faces, applied = replay_collapses(cur_v, faces, np.asarray(collapses),
-                                                     min_quality=min_quality)
+        alive, new_faces, applied, merged = replay_collapses(cur_v, faces, np.asarray(collapses),
+                                                             min_quality=min_quality)
         skipped = int((~applied).sum())
         if skipped:
             logger.info("simplify: skipped %d of %d collapses that were not topology-safe",
                         skipped, len(applied))
         new_index = np.cumsum(alive) - 1
+        owner = new_index[merged[owner]]
         faces, survivors = new_index[new_faces], survivors[alive]
         if len(survivors) <= 1.01 * n_vertices or applied.sum() == 0:
             break
     faces = delaunay_flips(mesh.vertices[survivors], faces)
     work = Mesh(mesh.vertices[survivors], faces, input_ids=mesh.input_ids[survivors])
     logger.info("simplify: %d -> %d vertices, %d faces", mesh.n_vertices, work.n_vertices, work.n_faces)
-    return _locate(work, mesh, survivors.astype(np.int64))
+    return _locate(work, mesh, survivors.astype(np.int64), owner)
+
 
 
 def working_mesh(mesh: Mesh, n_vertices: int | None) -> WorkingMesh:
