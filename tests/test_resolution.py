@@ -180,3 +180,21 @@ def test_projection_errors():
         project_among(np.zeros((1, 3)), m, np.array([0, 1]), np.array([m.n_vertices]))
     with pytest.raises(ValueError, match="point 0 has no candidate vertex"):
         project_among(np.zeros((1, 3)), m, np.array([0, 0]), np.array([], dtype=np.int64))
+
+
+def test_an_isolated_vertex_is_located_near_its_nearest_neighbour():
+    """A vertex in no face survives simplification (nothing collapses it) and owns only
+    itself; it is located on the surface around the nearest vertex that has faces."""
+    m = icosphere(3)
+    far = np.array([[1.5, 0.0, 0.0]])
+    w = simplify(gromov.Mesh(np.vstack([m.vertices, far]), m.faces), 100)
+    lone = m.n_vertices
+    assert w.source_owner[lone] == np.flatnonzero(w.vertex_ids == lone)[0]
+    point = w.source_bary[lone] @ w.mesh.vertices[w.mesh.faces[w.source_face[lone]]]
+    assert np.linalg.norm(point - far[0]) == pytest.approx(w.source_residual[lone])
+    # one convex sheet: the closest point of the whole surface (inscribed polyhedron: >= 0.5 away)
+    from gromov._project import closest_point_barycentric
+
+    V, F = w.mesh.vertices, w.mesh.faces
+    best = min(np.linalg.norm(np.array(closest_point_barycentric(far[0], *V[f])) @ V[f] - far[0]) for f in F)
+    assert w.source_residual[lone] == pytest.approx(best) and best >= 0.5

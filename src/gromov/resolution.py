@@ -140,14 +140,29 @@ def ring_candidates(mesh: Mesh, centres: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def _locate(work: Mesh, source: Mesh, vertex_ids: np.ndarray, owner: np.ndarray) -> WorkingMesh:
-    face, bary, dist = project_among(source.vertices, work, *ring_candidates(work, owner))
-    # working vertices are source vertices: locate them on one of their own faces exactly
+    owner = np.asarray(owner, dtype=np.int64)
     indptr, fids = work.vertex_faces
-    own = fids[indptr[:-1]]
-    face[vertex_ids] = own
-    corner = np.argmax(work.faces[own] == np.arange(work.n_vertices)[:, None], axis=1)
-    bary[vertex_ids] = np.eye(3)[corner]
-    dist[vertex_ids] = 0.0
+    has_faces = np.diff(indptr) > 0
+    around = owner
+    lonely = ~has_faces[owner]
+    if lonely.any():
+        # an isolated vertex (in no face) owns only itself: locate it around the nearest
+        # vertex that has faces
+        from scipy.spatial import cKDTree
+
+        ref = np.flatnonzero(has_faces)
+        if len(ref) == 0:
+            raise MeshError("cannot locate vertices on a working mesh without faces")
+        around = owner.copy()
+        around[lonely] = ref[cKDTree(work.vertices[ref]).query(source.vertices[lonely])[1]]
+    face, bary, dist = project_among(source.vertices, work, *ring_candidates(work, around))
+    # working vertices are source vertices: locate them on one of their own faces exactly
+    w = np.flatnonzero(has_faces)
+    own = fids[indptr[w]]
+    face[vertex_ids[w]] = own
+    corner = np.argmax(work.faces[own] == w[:, None], axis=1)
+    bary[vertex_ids[w]] = np.eye(3)[corner]
+    dist[vertex_ids[w]] = 0.0
     nearest = work.faces[face, np.argmax(bary, axis=1)]
     owner = np.array(owner, dtype=np.int64)
     for a in (face, bary, nearest, dist, vertex_ids, owner):
