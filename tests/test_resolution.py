@@ -198,3 +198,14 @@ def test_an_isolated_vertex_is_located_near_its_nearest_neighbour():
     V, F = w.mesh.vertices, w.mesh.faces
     best = min(np.linalg.norm(np.array(closest_point_barycentric(far[0], *V[f])) @ V[f] - far[0]) for f in F)
     assert w.source_residual[lone] == pytest.approx(best) and best >= 0.5
+
+
+def test_gather_concatenates_the_lists_of_each_group():
+    from gromov.resolution import gather
+
+    ptr, ids = np.array([0, 2, 2, 5]), np.array([10, 11, 20, 21, 22])   # key 0: 10 11, 1: -, 2: 20 21 22
+    out_ptr, out = gather(ptr, ids, np.array([0, 2, 3, 3]), np.array([2, 0, 1]))
+    assert out_ptr.tolist() == [0, 5, 5, 5]
+    assert out.tolist() == [20, 21, 22, 10, 11]
+    out_ptr, out = gather(ptr, ids, np.array([0, 1, 3]), np.array([0, 0, 2]))
+    assert out_ptr.tolist() == [0, 2, 7] and out.tolist() == [10, 11, 10, 11, 20, 21, 22]

@@ -27,7 +27,7 @@ from .mesh import Mesh, as_mesh
 from .metrics import metric_solver
 from .metrics.diffusion import correspondence_options
 from .orientation import orientation_agreements, outward_normals
-from .resolution import WorkingMesh, ring_candidates, working_mesh
+from .resolution import WorkingMesh, gather, ring_candidates, working_mesh
 from .sampling import farthest_point_sampling
 
 __all__ = ["ShapeMetric", "MatchResult", "match"]
@@ -269,15 +269,8 @@ class ShapeMetric:
                 self._owned = self.working.owned()
             own_ptr, own_ids = self._owned
             corners = self.mesh.faces[np.asarray(pts.face, dtype=np.int64)]   # (p, 3)
-            ring_ptr, ring = ring_candidates(self.mesh, corners.ravel())
-            cand = []
-            for i in range(len(corners)):
-                near = np.unique(ring[ring_ptr[3 * i]:ring_ptr[3 * i + 3]])
-                cand.append(np.concatenate([own_ids[own_ptr[w]:own_ptr[w + 1]] for w in near]))
-            ptr = np.zeros(len(cand) + 1, dtype=np.int64)
-            np.cumsum([len(c) for c in cand], out=ptr[1:])
-            ids = np.concatenate(cand) if cand else np.zeros(0, np.int64)
-            face, bary, _ = project_among(pos, self.input, ptr, ids)
+            ring_ptr, ring = ring_candidates(self.mesh, corners.ravel())   # 3 rings per point
+            face, bary, _ = project_among(pos, self.input, *gather(own_ptr, own_ids, ring_ptr[::3], ring))
         vertex = self.input.faces[face, np.argmax(bary, axis=1)]
         return face, bary, self.input.input_ids[vertex]
 

@@ -139,6 +139,17 @@ def ring_candidates(mesh: Mesh, centres: np.ndarray) -> tuple[np.ndarray, np.nda
     return ptr, ids
 
 
+def gather(ptr: np.ndarray, ids: np.ndarray, groups_ptr: np.ndarray, groups: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(indptr, ids)``: for each group ``groups[groups_ptr[g]:groups_ptr[g + 1]]`` of keys,
+    the concatenation of the lists ``ids[ptr[k]:ptr[k + 1]]`` of its keys (duplicates kept)."""
+    groups = np.asarray(groups, dtype=np.int64)
+    lens = ptr[groups + 1] - ptr[groups]
+    out_ptr = np.concatenate([[0], np.cumsum(lens)])[np.asarray(groups_ptr, dtype=np.int64)]
+    within = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens)
+    return out_ptr, ids[np.repeat(ptr[groups], lens) + within]
+
+
 def _locate(work: Mesh, source: Mesh, vertex_ids: np.ndarray, owner: np.ndarray) -> WorkingMesh:
     owner = np.asarray(owner, dtype=np.int64)
     indptr, fids = work.vertex_faces
