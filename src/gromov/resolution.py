@@ -125,20 +125,6 @@ class WorkingMesh:
         return indptr, order.astype(np.int64)
 
 
-def ring_candidates(mesh: Mesh, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """CSR ``(indptr, ids)`` of each centre vertex followed by its neighbours in ``mesh``."""
-    centres = np.asarray(centres, dtype=np.int64)
-    adj = mesh.adjacency
-    deg = np.diff(adj.indptr)[centres]
-    ptr = np.zeros(len(centres) + 1, dtype=np.int64)
-    np.cumsum(deg + 1, out=ptr[1:])
-    ids = np.empty(ptr[-1], dtype=np.int64)
-    ids[ptr[:-1]] = centres
-    within = np.arange(int(deg.sum())) - np.repeat(np.cumsum(deg) - deg, deg)
-    ids[np.repeat(ptr[:-1] + 1, deg) + within] = adj.indices[np.repeat(adj.indptr[centres], deg) + within]
-    return ptr, ids
-
-
 def gather(ptr: np.ndarray, ids: np.ndarray, groups_ptr: np.ndarray, groups: np.ndarray
            ) -> tuple[np.ndarray, np.ndarray]:
     """CSR ``(indptr, ids)``: for each group ``groups[groups_ptr[g]:groups_ptr[g + 1]]`` of keys,
@@ -148,6 +134,18 @@ def gather(ptr: np.ndarray, ids: np.ndarray, groups_ptr: np.ndarray, groups: np.
     out_ptr = np.concatenate([[0], np.cumsum(lens)])[np.asarray(groups_ptr, dtype=np.int64)]
     within = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens)
     return out_ptr, ids[np.repeat(ptr[groups], lens) + within]
+
+
+def ring_candidates(mesh: Mesh, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(indptr, ids)`` of each centre vertex followed by its neighbours in ``mesh``."""
+    centres = np.asarray(centres, dtype=np.int64)
+    adj = mesh.adjacency
+    # each vertex's list: itself, then its neighbours
+    ptr = adj.indptr + np.arange(mesh.n_vertices + 1)
+    ids = np.empty(ptr[-1], dtype=np.int64)
+    ids[ptr[:-1]] = np.arange(mesh.n_vertices)
+    ids[np.delete(np.arange(ptr[-1]), ptr[:-1])] = adj.indices
+    return gather(ptr, ids, np.arange(len(centres) + 1), centres)
 
 
 def _locate(work: Mesh, source: Mesh, vertex_ids: np.ndarray, owner: np.ndarray) -> WorkingMesh:
