@@ -210,25 +210,14 @@ def cmd_info(args) -> int:
 def cmd_distances(args) -> int:
     from .mesh import Mesh
     from .metrics import metric_solver
-    from .resolution import working_mesh
+    from .resolution import working_cloud, working_mesh
     from .sampling import farthest_point_sampling
 
     shape = _load(args.mesh)
     t0 = time.perf_counter()
-    if isinstance(shape, Mesh):
-        work = working_mesh(shape, args.resolution)
-        target, to_input = work.mesh, work.to_input_ids
-    else:  # point cloud: Euclidean farthest points as the working resolution
-        from .metrics import EuclideanSolver
-        from .mesh import PointCloud
-
-        if shape.n_vertices > args.resolution:
-            keep = farthest_point_sampling(EuclideanSolver(shape), args.resolution, seed=args.seed).indices
-            keep = np.sort(keep)
-            target = PointCloud(shape.vertices[keep], input_ids=shape.input_ids[keep])
-        else:
-            target = shape
-        to_input = lambda idx: target.input_ids[np.asarray(idx)]  # noqa: E731
+    # a point cloud's working set: Euclidean farthest points (working_cloud)
+    work = working_mesh(shape, args.resolution) if isinstance(shape, Mesh) else working_cloud(shape, args.resolution)
+    target, to_input = work.mesh, work.to_input_ids
     if args.samples is not None and args.samples > target.n_vertices:
         raise _UserError(f"--samples {args.samples} is more than the {target.n_vertices} vertices "
                          f"of the working mesh of {args.mesh}")
@@ -277,17 +266,16 @@ def cmd_match(args) -> int:
     options = correspondence_options(args.metric, _metric_options(args))
     shapes = []
     for path in (args.x, args.y):
-        shape = _load(path)
-        try:
-            shapes.append(ShapeMetric(shape, args.metric, resolution=args.resolution,
-                                      metric_options=options))
-        except TypeError:
-            raise _UserError(f"{path}: matching needs a triangle mesh, got a point cloud") from None
+        shapes.append(ShapeMetric(_load(path), args.metric, resolution=args.resolution,
+                                  metric_options=options))
     for path, s in zip((args.x, args.y), shapes):
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
-                             f"vertices of the working mesh of {path}")
+                             f"vertices of the working {'mesh' if s.has_faces else 'point set'} of {path}")
     if args.plot:
+        for path, s in zip((args.x, args.y), shapes):
+            if not s.has_faces:
+                raise _UserError(f"--plot draws the correspondence on triangle meshes; {path} is a point cloud")
         _check_png(args.plot, "--plot")
         try:
             import matplotlib  # noqa: F401
@@ -417,17 +405,13 @@ def cmd_pairwise(args) -> int:
             import matplotlib  # noqa: F401
         except ImportError:
             raise _UserError("--mds needs matplotlib: pip install 'gromov[plot]'") from None
-    from .mesh import Mesh
-
     shapes = []
-    for path in args.files:
+    for path in args.files:   # meshes or point clouds (their images are then points)
         shape = _load(path)
-        if not isinstance(shape, Mesh):
-            raise _UserError(f"{path}: matching needs a triangle mesh, got a point cloud")
         work = min(args.resolution, shape.n_vertices)
         if args.samples > work:
             raise _UserError(f"--samples {args.samples} is more than the {work} vertices of the "
-                             f"working mesh of {path}")
+                             f"working set of {path}")
         shapes.append(shape)
     options = _metric_options(args)
     t = time.perf_counter()

@@ -23,11 +23,11 @@ from ._project import project_among
 from .errors import GromovWarning
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
                    norm_value, parse_norm, trimmed_rms)
-from .mesh import Mesh, as_mesh
+from .mesh import Mesh, as_mesh, as_shape
 from .metrics import metric_solver
 from .metrics.diffusion import correspondence_options
 from .orientation import orientation_agreements, outward_normals
-from .resolution import WorkingMesh, gather, ring_candidates, working_mesh
+from .resolution import WorkingCloud, WorkingMesh, gather, ring_candidates, working_cloud, working_mesh
 from .sampling import farthest_point_sampling
 
 __all__ = ["ShapeMetric", "MatchResult", "match"]
@@ -101,15 +101,16 @@ class ShapeMetric:
 
     Parameters
     ----------
-    shape : Mesh, str, os.PathLike, (vertices, faces) or an object with vertices and faces
-        The input mesh, a file to load, or arrays / a mesh object (``trimesh.Trimesh``...)
-        read by :func:`gromov.mesh.as_mesh`.
+    shape : Mesh, PointCloud, str, os.PathLike, (vertices, faces), (n, 3) array or a mesh object
+        The input mesh or point cloud, a file to load, or arrays / a mesh or point-cloud
+        object (``trimesh.Trimesh``...) read by :func:`gromov.mesh.as_shape`.
     metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
     resolution : int or None, default 3000
-        Working mesh size (None: the input mesh as it is).
+        Working mesh size (None: the input mesh as it is). A point cloud's working set is that
+        many of its points (:func:`gromov.resolution.working_cloud`: farthest points in space).
     metric_options : dict, optional
         Passed to :func:`gromov.metrics.metric_solver`.
-    working : WorkingMesh, optional
+    working : WorkingMesh or WorkingCloud, optional
         Use this working mesh (e.g. ``reference.working.transfer(pose)`` to simplify the poses
         of a class identically) instead of simplifying ``shape``.
 
@@ -120,15 +121,17 @@ class ShapeMetric:
     """
 
     def __init__(self, shape, metric: str = "diffusion", *, resolution: int | None = DEFAULT_RESOLUTION,
-                 metric_options: dict | None = None, working: WorkingMesh | None = None):
+                 metric_options: dict | None = None, working: WorkingMesh | WorkingCloud | None = None):
         if isinstance(shape, (str, os.PathLike)):
             from .io import load
 
             shape = load(shape)
-        self.input = shape = as_mesh(shape)
+        self.input = shape = as_shape(shape)
         self.metric = metric
         self.metric_options = dict(metric_options or {})
-        self.working = working if working is not None else working_mesh(shape, resolution)
+        if working is None:
+            working = working_mesh(shape, resolution) if isinstance(shape, Mesh) else working_cloud(shape, resolution)
+        self.working = working
         self.solver = metric_solver(self.working.mesh, metric, **self.metric_options)
         self._surface: SurfaceDistance | None = None
         self._samples: dict = {}
@@ -142,7 +145,14 @@ class ShapeMetric:
 
     @property
     def mesh(self) -> Mesh:
+        """The working mesh (a :class:`~gromov.mesh.PointCloud` for a point cloud)."""
         return self.working.mesh
+
+    @property
+    def has_faces(self) -> bool:
+        """Whether the shape is a triangle mesh (else a point cloud: :func:`match` then keeps
+        its images at points)."""
+        return isinstance(self.mesh, Mesh)
 
     @property
     def distances(self) -> np.ndarray:
@@ -151,6 +161,9 @@ class ShapeMetric:
 
     @property
     def surface(self) -> SurfaceDistance:
+        """Distances between points inside the working mesh's triangles (meshes only)."""
+        if not self.has_faces:
+            raise TypeError("a point cloud has no surface to interpolate distances on")
         if self._surface is None:
             self._surface = SurfaceDistance(self.mesh, self.distances)
         return self._surface
@@ -184,9 +197,11 @@ class ShapeMetric:
     def normals(self) -> tuple[np.ndarray, bool]:
         """Outward unit normals at the working vertices (faces re-wound coherently first) and
         whether the working mesh is orientable (:func:`gromov.orientation.outward_normals`;
-        computed once)."""
+        computed once). A point cloud: NaN normals, not orientable (no faces say which side
+        is out)."""
         if self._normals is None:
-            self._normals = outward_normals(self.mesh)
+            self._normals = (outward_normals(self.mesh) if self.has_faces else
+                             (np.full((self.mesh.n_vertices, 3), np.nan), False))
         return self._normals
 
     def symmetry(self, n_samples: int = 100, seed: int = 0) -> np.ndarray | None:
@@ -256,7 +271,9 @@ class ShapeMetric:
         input faces around the input vertices that the corners of its working face, and
         their neighbours, own (:attr:`WorkingMesh.source_owner`,
         :func:`gromov._project.project_among`) -- never onto another sheet that passes
-        closer in space."""
+        closer in space. Meshes only."""
+        if not self.has_faces:
+            raise TypeError("locate needs a triangle mesh; a point cloud's images are its points")
         if self._same_as_input is None:
             m, s = self.mesh, self.input
             self._same_as_input = bool(m.n_vertices == s.n_vertices and np.array_equal(m.faces, s.faces)
@@ -751,6 +768,25 @@ def _at_vertices(sx, sy, img_p, img_q) -> tuple[SurfacePoints, SurfacePoints]:
     return SurfacePoints.at_vertices(sy.mesh, img_p), SurfacePoints.at_vertices(sx.mesh, img_q)
 
 
+def discrete_blocks(DX: np.ndarray, DY: np.ndarray, P: np.ndarray, Q: np.ndarray, img_p: np.ndarray,
+                    img_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`SymmetricGMDS.blocks` of a correspondence whose images are vertices (or points of
+    a cloud): the distances on X between ``[P, img_q]`` and on Y between ``[img_p, Q]``, read
+    off the dense matrices (the same values the interpolation gives at vertices)."""
+    a, b = np.r_[P, img_q].astype(np.int64), np.r_[img_p, Q].astype(np.int64)
+    return DX[np.ix_(a, a)], DY[np.ix_(b, b)]
+
+
+def _images_at_points(s: "ShapeMetric", images: np.ndarray):
+    """``(face, bary, vertex)`` in input terms of images at working vertices: on a mesh the
+    input point there (:meth:`ShapeMetric.locate`), on a point cloud the input point itself with
+    face -1 and NaN coordinates (a cloud has no faces)."""
+    if s.has_faces:
+        return s.locate(SurfacePoints.at_vertices(s.mesh, images))
+    n = len(images)
+    return np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), s.working.to_input_ids(images)
+
+
 def _orient(sa: "ShapeMetric", sb: "ShapeMetric", A: np.ndarray, da: np.ndarray):
     """The orientation agreement of vertex images ``(s, c)`` on ``sb`` of the first ``c`` of
     the samples ``A`` of ``sa`` (``da`` their distances)."""
@@ -851,7 +887,7 @@ def _as_shape(s, metric, resolution, metric_options, name: str) -> ShapeMetric:
             raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
         return s
     if not isinstance(s, (str, os.PathLike)):
-        s = as_mesh(s, name=name)   # arrays and mesh objects: errors and warnings name X or Y
+        s = as_shape(s, name=name)   # arrays and mesh objects: errors and warnings name X or Y
     return ShapeMetric(s, metric, resolution=resolution, metric_options=metric_options)
 
 
@@ -1048,13 +1084,24 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
             raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")
     if n_samples < 3:
         raise ValueError(f"n_samples must be at least 3, got {n_samples}")
+    # a point cloud has no faces: images stay at points (the initial search's discrete maps)
+    discrete = not (sx.has_faces and sy.has_faces)
+    if discrete and radius is not None:
+        raise ValueError("radius (partial matching) weighs the GMDS refinement on the surfaces, which "
+                         "needs triangle meshes; X or Y is a point cloud")
     P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
     DX, DY = sx.distances, sy.distances
     dx_pp, dy_qq = DX[np.ix_(P, P)], DY[np.ix_(Q, Q)]
-    X_s, Y_s = sx.surface, sy.surface
-    gm = SymmetricGMDS(X_s, Y_s, P, Q, p=p, max_iter=max_iter, tol=tol, radius=radius)
+    gm = None if discrete else SymmetricGMDS(sx.surface, sy.surface, P, Q, p=p, max_iter=max_iter,
+                                             tol=tol, radius=radius)
 
-    prefer = orientation == "prefer" and solver == "gmds" and init == "greedy"
+    def score(a, b):   # the two-sided L2 distortion of a start (vertex images)
+        if discrete:
+            ex, ey = discrete_blocks(DX, DY, P, Q, a, b)
+            return norm_value((ex - ey)[~np.eye(len(ex), dtype=bool)], 2.0)
+        return gm.distortion(*_at_vertices(sx, sy, a, b), 2.0)
+
+    prefer = orientation == "prefer" and solver == "gmds" and init == "greedy" and not discrete
     if prefer and not (sx.normals[1] and sy.normals[1]):
         warnings.warn("orientation='prefer' needs orientable working meshes (a Moebius-like "
                       "piece cannot be given an outward side); ignored", GromovWarning, stacklevel=2)
@@ -1069,14 +1116,15 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
                          search_vertices=search_vertices, extend_keep=extend_keep,
                          signature_weight=signature_weight)
         pairs = search.plain(all_starts=False)
-        scores = [gm.distortion(*_at_vertices(sx, sy, a, b), 2.0) for a, b in pairs]
+        scores = [score(a, b) for a, b in pairs]
         img_p0, img_q0 = pairs[int(np.argmin(scores))]
-    img_p, img_q = _at_vertices(sx, sy, img_p0, img_q0)
-    n_iter, converged = 0, True
-    if solver == "gmds":
-        img_p, img_q, n_iter, converged = gm.solve(img_p, img_q)
-    history = list(gm.history)
-    orient = pair_orientation(sx, sy, P, Q, img_p, img_q)
+    n_iter, converged, history, orient = 0, True, [], float("nan")
+    if not discrete:
+        img_p, img_q = _at_vertices(sx, sy, img_p0, img_q0)
+        if solver == "gmds":
+            img_p, img_q, n_iter, converged = gm.solve(img_p, img_q)
+        history = list(gm.history)
+        orient = pair_orientation(sx, sy, P, Q, img_p, img_q)
     if prefer and not orient > 0.5:
         # a mirrored (or scrambled) map: GMDS from the best orientation-preserving start too,
         # among the extended starts and more preserving ones; keep it if nearly as good
@@ -1125,7 +1173,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         if found is not None:
             img_p, img_q, n_iter, converged, history, orient = found
 
-    dx, dy = gm.blocks(img_p, img_q)
+    dx, dy = discrete_blocks(DX, DY, P, Q, img_p0, img_q0) if discrete else gm.blocks(img_p, img_q)
     residual = dx - dy
     np.fill_diagonal(residual, 0.0)   # not a pair (an interpolated self-distance need not be 0)
     r = residual[~np.eye(len(dx), dtype=bool)]
@@ -1136,12 +1184,19 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     if rank_tau_scale is not None:
         mx, my = sx.ranking_surface(rank_tau_scale), sy.ranking_surface(rank_tau_scale)
     if mx is not None and my is not None:   # the same correspondence in the finer heat metric
-        ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(img_p, img_q)
+        if discrete:
+            ex, ey = mx[0].block(np.r_[P, img_q0]), my[0].block(np.r_[img_p0, Q])
+        else:
+            ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(img_p, img_q)
         ranking = ranking_value(ex, ey, max(mx[1], my[1]), rank_residual)
     else:                                   # in the match's metric ("difference": relative_trimmed)
         ranking = ranking_value(dx, dy, diam, rank_residual)
-    xy_face, xy_bary, xy_vertex = sy.locate(img_p)
-    yx_face, yx_bary, yx_vertex = sx.locate(img_q)
+    if discrete:
+        xy_face, xy_bary, xy_vertex = _images_at_points(sy, img_p0)
+        yx_face, yx_bary, yx_vertex = _images_at_points(sx, img_q0)
+    else:
+        xy_face, xy_bary, xy_vertex = sy.locate(img_p)
+        yx_face, yx_bary, yx_vertex = sx.locate(img_q)
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
         distortion_l2=d_l2, distortion_linf=d_linf, norm=norm_name, metric=metric, solver=solver,

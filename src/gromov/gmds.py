@@ -252,7 +252,8 @@ class EmbeddedDistance:
 
     Parameters
     ----------
-    mesh : Mesh
+    mesh : Mesh or PointCloud
+        A point cloud: only :meth:`block` (distances between its points), no interpolation.
     embedding : ndarray, shape (n, K)
     """
 
@@ -261,7 +262,8 @@ class EmbeddedDistance:
         if psi.ndim != 2 or len(psi) != mesh.n_vertices:
             raise ValueError(f"embedding must have {mesh.n_vertices} rows, got shape {psi.shape}")
         self.mesh, self.embedding = mesh, psi
-        self.faces = np.ascontiguousarray(mesh.faces)
+        # a point cloud has no faces: :meth:`block` only (distances between its points)
+        self.faces = np.ascontiguousarray(mesh.faces) if isinstance(mesh, Mesh) else None
 
     def _squared(self, vertices: np.ndarray) -> np.ndarray:
         """Squared distances between the given vertices, from the Gram matrix (one BLAS
@@ -276,6 +278,8 @@ class EmbeddedDistance:
         return np.sqrt(self._squared(np.asarray(vertices, dtype=np.int64)))
 
     def between(self, pts: SurfacePoints, fixed: np.ndarray) -> np.ndarray:
+        if self.faces is None:
+            raise TypeError("a point cloud has no faces to interpolate distances on")
         fixed = np.asarray(fixed, np.int64)
         corners = self.faces[pts.face]
         used, local = np.unique(np.concatenate([corners.ravel(), fixed]), return_inverse=True)

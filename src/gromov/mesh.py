@@ -25,6 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from .errors import GromovWarning, MeshError
 
 __all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "component_areas", "as_vertices",
+           "as_shape",
            "as_faces", "as_mesh"]
 
 logger = logging.getLogger(__name__)
@@ -663,3 +664,39 @@ def as_mesh(shape, *, name: str = "shape") -> Mesh:
         raise MeshError(f"{name}: vertices and faces must be arrays of shape (n, 3) and (m, 3): "
                         f"{exc}") from None
     return repair(Mesh(vertices, faces), source=name)[0]
+
+
+def as_shape(shape, *, name: str = "shape") -> PointCloud:
+    """A :class:`Mesh` or, for points without faces, a :class:`PointCloud`.
+
+    Parameters
+    ----------
+    shape : Mesh, PointCloud, (vertices, faces), an ``(n, 3)`` array or an object with vertices
+        What :func:`as_mesh` takes, and also point clouds: a :class:`PointCloud` is returned as
+        it is; an array of shape ``(n, 3)`` (not a pair of arrays) or an object with
+        ``vertices`` (or Open3D's ``points``) and no faces becomes a :class:`PointCloud` whose
+        ``input_ids`` index the given points.
+    name : str, default "shape"
+        Used in error messages.
+
+    Returns
+    -------
+    Mesh or PointCloud
+
+    Raises
+    ------
+    TypeError
+        If ``shape`` is none of these.
+    MeshError
+        If the arrays are not valid points or a valid triangle mesh.
+    """
+    if isinstance(shape, PointCloud):
+        return shape
+    if isinstance(shape, np.ndarray) and shape.ndim == 2:
+        return PointCloud(shape)
+    has_faces = any(hasattr(shape, a) for a in ("faces", "triangles"))
+    if not has_faces and not isinstance(shape, (tuple, list)):
+        points = getattr(shape, "vertices", getattr(shape, "points", None))
+        if points is not None:
+            return PointCloud(points)
+    return as_mesh(shape, name=name)

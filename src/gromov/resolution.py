@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._project import project_among
-from .mesh import Mesh, MeshError
+from .mesh import Mesh, MeshError, PointCloud
 
-__all__ = ["WorkingMesh", "simplify", "working_mesh"]
+__all__ = ["WorkingMesh", "WorkingCloud", "simplify", "working_mesh", "working_cloud"]
 
 logger = logging.getLogger(__name__)
 
@@ -343,3 +343,92 @@ def simplify(mesh: Mesh, n_vertices: int, *, aggressiveness: float = 7.0,
 def working_mesh(mesh: Mesh, n_vertices: int | None) -> WorkingMesh:
     """:func:`simplify` when ``n_vertices`` is given and smaller than the mesh, else the identity map."""
     return simplify(mesh, mesh.n_vertices if n_vertices is None else n_vertices)
+
+
+@dataclass(frozen=True, eq=False)
+class WorkingCloud:
+    """The working subset of a point cloud, with the maps to and from the cloud it came from:
+    :class:`WorkingMesh`'s counterpart for shapes without faces.
+
+    Attributes
+    ----------
+    mesh : PointCloud
+        The working points (named as :attr:`WorkingMesh.mesh`, so that both are used alike).
+        Its ``input_ids`` are the input ids of its points (``source.input_ids[vertex_ids]``).
+    source : PointCloud
+        The cloud it was taken from.
+    vertex_ids : ndarray, shape (n_work,)
+        Working point ``i`` is point ``vertex_ids[i]`` of ``source`` (increasing).
+    source_nearest : ndarray, shape (n_source,)
+        Working point nearest (Euclidean) to each source point; a working point is its own.
+    """
+
+    mesh: PointCloud
+    source: PointCloud
+    vertex_ids: np.ndarray
+    source_nearest: np.ndarray
+
+    @property
+    def n_vertices(self) -> int:
+        return self.mesh.n_vertices
+
+    def to_input_ids(self, working_vertices) -> np.ndarray:
+        """Input ids (as read from the file, or indices of the given points) of working points."""
+        return self.mesh.input_ids[np.asarray(working_vertices, dtype=np.int64)]
+
+    def to_source(self, working_vertices) -> np.ndarray:
+        """Indices in ``source`` of working points."""
+        return self.vertex_ids[np.asarray(working_vertices, dtype=np.int64)]
+
+    def from_source(self, source_vertices) -> np.ndarray:
+        """Nearest working point of each given ``source`` point."""
+        return self.source_nearest[np.asarray(source_vertices, dtype=np.int64)]
+
+    def interpolate(self, values: np.ndarray) -> np.ndarray:
+        """Carry a function on working points, ``(n_work, ...)``, to all source points: the
+        value of the nearest working point (a cloud has no faces to interpolate on)."""
+        values = np.asarray(values)
+        if values.shape[0] != self.mesh.n_vertices:
+            raise ValueError(f"values must have {self.mesh.n_vertices} rows (working points), "
+                             f"got shape {values.shape}")
+        return values[self.source_nearest]
+
+
+def working_cloud(cloud: PointCloud, n_points: int | None) -> WorkingCloud:
+    """The working subset of a point cloud: ``n_points`` farthest points in space.
+
+    Farthest point sampling in the Euclidean distance (an even cover of the cloud, which the
+    k-nearest-neighbour graph of the geodesic metric and the point-cloud Laplacian of the
+    diffusion metric want), started from the point farthest from the centroid, so that the
+    subset does not depend on the order of the points (up to ties). With ``n_points`` None or
+    not smaller than the cloud: all points.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    n_points : int or None
+
+    Returns
+    -------
+    WorkingCloud
+    """
+    from scipy.spatial import cKDTree
+
+    from .metrics import EuclideanSolver
+    from .sampling import farthest_point_sampling
+
+    if not isinstance(cloud, PointCloud):
+        raise TypeError(f"cloud must be a PointCloud, got {type(cloud).__name__}")
+    n = cloud.n_vertices
+    if n_points is not None and (isinstance(n_points, bool) or int(n_points) != n_points or n_points < 1):
+        raise ValueError(f"n_points must be a positive integer or None, got {n_points!r}")
+    V = cloud.vertices
+    if n_points is None or n_points >= n:
+        keep = np.arange(n, dtype=np.int64)
+    else:
+        first = int(np.argmax(((V - V.mean(axis=0)) ** 2).sum(axis=1)))
+        keep = np.sort(farthest_point_sampling(EuclideanSolver(cloud), int(n_points), first=first).indices)
+    work = PointCloud(V[keep], input_ids=cloud.input_ids[keep])
+    nearest = cKDTree(V[keep]).query(V)[1].astype(np.int64)
+    nearest[keep] = np.arange(len(keep))   # a working point is its own, even where points coincide
+    return WorkingCloud(work, cloud, keep, nearest)

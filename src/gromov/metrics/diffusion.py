@@ -548,7 +548,11 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         else:
             max_inv_mass = float((1.0 / self.mass.diagonal()).max())
             out.truncation_bound = float(np.exp(-2.0 * lam[-1] * out.t) * 2.0 * max_inv_mass) * out.unit_scale**2
-        psi_out = out._scaled(lam, psi * np.exp(-lam * (out.t - self.t)))
+        # exp(lambda (t - t')) overflows for the top eigenpairs of a small shape (all of them
+        # computed) at a finer time; their psi = exp(-lambda t) phi has underflowed to 0 there,
+        # and the true exp(-lambda t') phi is below exp(-700 t' / (t - t')): negligible unless
+        # t' is a small fraction of t. Capped, they stay 0 instead of 0 * inf = NaN.
+        psi_out = out._scaled(lam, psi * np.exp(np.minimum(-lam * (out.t - self.t), 700.0)))
         psi_out.flags.writeable = False
         out._psi = psi_out
         return out
@@ -584,6 +588,27 @@ class HeatDiffusionSolver(_SpectralDiffusion):
                 f"laplacian={self.laplacian!r}, units={self.units!r})")
 
 
+def _point_cloud_laplacian(rl, v: np.ndarray):
+    """``robust_laplacian.point_cloud_laplacian`` of the points ``v``, made independent of where
+    the cloud lies and of the order of its points.
+
+    The library's operator depends on both (local triangulations of nearly co-circular
+    neighbours, neighbour ties): measured on 1,800 random points of a bumpy torus, the heat
+    distances (raw) moved by up to 4.2% of the diameter (median 0.18%) when the cloud was
+    shifted by 1 (about its radius) and by up to 1.0% when its points were reordered (rotated:
+    0.3%). So the points are given to it centred on their centroid and sorted by their distance
+    from it (a canonical order for any placement of the same cloud), and the operator is put
+    back in the given order. A rotation can still move distances a little (up to 0.3% of the
+    diameter there): no canonical orientation is imposed.
+    """
+    c = v - v.mean(axis=0)
+    order = np.argsort(np.einsum("ij,ij->i", c, c), kind="stable")
+    lap, m = rl.point_cloud_laplacian(np.ascontiguousarray(c[order]))
+    back = np.empty_like(order)
+    back[order] = np.arange(len(order))
+    return sp.csr_matrix(lap)[back][:, back], sp.csr_matrix(m)[back][:, back]
+
+
 def _laplacian(shape, laplacian: str, what: str):
     """``(name, stiffness L, lumped mass M, area)`` of a mesh or point cloud."""
     if laplacian not in ("cotan", "robust"):
@@ -599,7 +624,7 @@ def _laplacian(shape, laplacian: str, what: str):
         if isinstance(shape, Mesh):
             lap, m = rl.mesh_laplacian(v, np.array(shape.faces))
         else:
-            lap, m = rl.point_cloud_laplacian(v)
+            lap, m = _point_cloud_laplacian(rl, v)
         stiffness, mass = sp.csr_matrix(lap), sp.csr_matrix(m)
         area = float(mass.diagonal().sum())
     if np.any(mass.diagonal() <= 0):
