@@ -314,14 +314,14 @@ class MatchResult:
         Images of X's samples on Y's input mesh: face, barycentric coordinates, nearest vertex.
         Vertex ids are the file's numbering. Face ids are the file's too unless loading had to
         drop degenerate or repeated faces (a ``GromovWarning`` says so); then they index the
-        repaired mesh's faces.
+        repaired mesh's faces. On a point cloud: face -1, NaN coordinates, and the image point.
     y_to_x_face, y_to_x_bary, y_to_x_vertex : ndarray
         The same for Y's samples on X.
     orientation : float
         Fraction of small sample triangles whose sense of rotation the correspondence keeps
         (:func:`gromov.orientation.orientation_agreement`, both directions averaged): about 1
         for a direct map, about 0 for a mirrored one (left and right swapped), about 1/2 for a
-        scrambled one; NaN when a mesh is not orientable.
+        scrambled one; NaN when a mesh is not orientable or a shape is a point cloud.
     distortion_trimmed : float
         RMS distortion of the best-fitting 80% of the pairs of the final correspondence
         (:func:`gromov.gmds.trimmed_rms`, ``TRIM_KEEP``): the distortion left when the pairs a
@@ -904,9 +904,20 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
 
     Parameters
     ----------
-    X, Y : Mesh, path, (vertices, faces), trimesh.Trimesh or ShapeMetric
+    X, Y : Mesh, PointCloud, path, (vertices, faces), (n, 3) array, trimesh.Trimesh or ShapeMetric
         Shapes (a :class:`ShapeMetric` reuses its precomputed metric; arrays and mesh objects
-        are read by :func:`gromov.mesh.as_mesh`, and the results' vertex ids index them).
+        are read by :func:`gromov.mesh.as_shape`, and the results' vertex ids index them).
+        **Point clouds** (points without faces: an ``(n, 3)`` array, a
+        :class:`~gromov.mesh.PointCloud`, a file without faces) are matched too: their working
+        set is ``resolution`` farthest points (:func:`gromov.resolution.working_cloud`), the
+        geodesic metric is Dijkstra on the k-nearest-neighbour graph, the diffusion metric that
+        of the robust point-cloud Laplacian. With a point cloud on either side the
+        correspondence is the initial search's discrete map (images at working points or
+        vertices, no GMDS refinement inside triangles, which needs faces on both sides); images
+        on a cloud are given as its points (``x_to_y_vertex``) with face -1 and NaN
+        barycentric coordinates, images on a mesh as usual; ``orientation`` is NaN and not
+        preferred (a cloud has no outward side); ``norm`` only chooses what is reported;
+        ``radius`` is refused.
     metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
     n_samples : int, default 100
         Farthest point samples per shape.

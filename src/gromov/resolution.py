@@ -31,8 +31,29 @@ __all__ = ["WorkingMesh", "WorkingCloud", "simplify", "working_mesh", "working_c
 logger = logging.getLogger(__name__)
 
 
+class _WorkingMaps:
+    """The maps both working shapes have (:class:`WorkingMesh`, :class:`WorkingCloud`), from
+    their ``mesh``, ``vertex_ids`` and ``source_nearest``."""
+
+    @property
+    def n_vertices(self) -> int:
+        return self.mesh.n_vertices
+
+    def to_input_ids(self, working_vertices) -> np.ndarray:
+        """File ids (as read from the input file) of working vertices."""
+        return self.mesh.input_ids[np.asarray(working_vertices, dtype=np.int64)]
+
+    def to_source(self, working_vertices) -> np.ndarray:
+        """Indices in ``source`` of working vertices."""
+        return self.vertex_ids[np.asarray(working_vertices, dtype=np.int64)]
+
+    def from_source(self, source_vertices) -> np.ndarray:
+        """Nearest working vertex of each given ``source`` vertex."""
+        return self.source_nearest[np.asarray(source_vertices, dtype=np.int64)]
+
+
 @dataclass(frozen=True, eq=False)
-class WorkingMesh:
+class WorkingMesh(_WorkingMaps):
     """A simplified mesh together with the maps to and from the mesh it came from.
 
     Attributes
@@ -69,22 +90,6 @@ class WorkingMesh:
     source_nearest: np.ndarray
     source_residual: np.ndarray
     source_owner: np.ndarray
-
-    @property
-    def n_vertices(self) -> int:
-        return self.mesh.n_vertices
-
-    def to_input_ids(self, working_vertices) -> np.ndarray:
-        """File ids (as read from the input file) of working vertices."""
-        return self.mesh.input_ids[np.asarray(working_vertices, dtype=np.int64)]
-
-    def to_source(self, working_vertices) -> np.ndarray:
-        """Indices in ``source`` of working vertices."""
-        return self.vertex_ids[np.asarray(working_vertices, dtype=np.int64)]
-
-    def from_source(self, source_vertices) -> np.ndarray:
-        """Nearest working vertex of each given ``source`` vertex."""
-        return self.source_nearest[np.asarray(source_vertices, dtype=np.int64)]
 
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """Carry a function on working vertices, ``(n_work, ...)``, to all source vertices.
@@ -346,7 +351,7 @@ def working_mesh(mesh: Mesh, n_vertices: int | None) -> WorkingMesh:
 
 
 @dataclass(frozen=True, eq=False)
-class WorkingCloud:
+class WorkingCloud(_WorkingMaps):
     """The working subset of a point cloud, with the maps to and from the cloud it came from:
     :class:`WorkingMesh`'s counterpart for shapes without faces.
 
@@ -367,22 +372,6 @@ class WorkingCloud:
     source: PointCloud
     vertex_ids: np.ndarray
     source_nearest: np.ndarray
-
-    @property
-    def n_vertices(self) -> int:
-        return self.mesh.n_vertices
-
-    def to_input_ids(self, working_vertices) -> np.ndarray:
-        """Input ids (as read from the file, or indices of the given points) of working points."""
-        return self.mesh.input_ids[np.asarray(working_vertices, dtype=np.int64)]
-
-    def to_source(self, working_vertices) -> np.ndarray:
-        """Indices in ``source`` of working points."""
-        return self.vertex_ids[np.asarray(working_vertices, dtype=np.int64)]
-
-    def from_source(self, source_vertices) -> np.ndarray:
-        """Nearest working point of each given ``source`` point."""
-        return self.source_nearest[np.asarray(source_vertices, dtype=np.int64)]
 
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """Carry a function on working points, ``(n_work, ...)``, to all source points: the
