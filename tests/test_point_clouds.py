@@ -128,6 +128,20 @@ def test_a_mesh_and_the_cloud_of_its_vertices():
     np.testing.assert_array_equal(r.y_to_x_vertex, perm[r.y_samples])
 
 
+def test_point_cloud_neighbours_are_an_option_of_the_diffusion_metric():
+    from gromov.metrics.diffusion import POINT_CLOUD_NEIGHBORS, BiharmonicSolver, HeatDiffusionSolver
+
+    cloud = PointCloud(bumpy_torus_points(300))
+    a, b = HeatDiffusionSolver(cloud), HeatDiffusionSolver(cloud, neighbors=10)
+    assert a.neighbors == POINT_CLOUD_NEIGHBORS and "neighbors=20" in repr(a)
+    assert not np.allclose(a.pairwise(), b.pairwise())       # it is used
+    assert "neighbors" not in repr(HeatDiffusionSolver(torus(12, 6)))   # meshes: not used
+    assert BiharmonicSolver(cloud, neighbors=12).neighbors == 12
+    for bad in (2, 2.5, True, "20"):
+        with pytest.raises(ValueError, match="neighbors must be an integer >= 3"):
+            HeatDiffusionSolver(cloud, neighbors=bad)
+
+
 def test_what_a_point_cloud_cannot_do():
     pts = bumpy_torus_points(200)
     s = ShapeMetric(pts, "euclidean", resolution=None)
@@ -183,15 +197,26 @@ def test_cli_matches_point_cloud_files(tmp_path):
 
 
 def test_a_finer_heat_time_from_all_eigenpairs_of_a_small_cloud_stays_finite():
-    # all 450 eigenpairs are computed; the top ones have lambda t ~ 1,500, where exp(-lambda t)
-    # underflows and exp(lambda t / 2) overflows: 0 * inf was NaN before session 19
+    # all 450 eigenpairs are computed; with 30 neighbours the top ones have lambda t ~ 1,500,
+    # where exp(-lambda t) underflows and exp(lambda t / 2) overflows: 0 * inf was NaN before
+    # session 19
     from gromov.metrics.diffusion import HeatDiffusionSolver
 
     cloud = PointCloud(bumpy_torus_points(450))
-    a = HeatDiffusionSolver(cloud, units="raw")
+    a = HeatDiffusionSolver(cloud, units="raw", neighbors=30)
     a.embedding   # computed on first use
-    assert a.eigenvalues[-1] * a.t > 1400
+    assert a.eigenvalues[-1] * a.t / 2 > np.log(np.finfo(float).max)   # exp(lambda t / 2) overflows
     finer = a.at_tau(a.tau / 2).pairwise()
-    direct = HeatDiffusionSolver(cloud, tau=a.tau / 2, units="raw").pairwise()
+    direct = HeatDiffusionSolver(cloud, tau=a.tau / 2, units="raw", neighbors=30).pairwise()
     assert np.isfinite(finer).all()
     np.testing.assert_allclose(finer, direct, atol=1e-9 * direct.max())
+
+
+def test_a_cloud_in_pieces_is_refused_clearly():
+    pts = bumpy_torus_points(400)
+    two = np.vstack([pts, pts + [10.0, 0.0, 0.0]])   # two far copies: the 10-NN graph falls apart
+    s = ShapeMetric(two, "geodesic", resolution=None)
+    assert not s.finite and np.isfinite(s.diameter)
+    assert ShapeMetric(pts, "geodesic", resolution=None).finite
+    with pytest.raises(gromov.MetricError, match="X: matching needs finite distances"):
+        match(s, pts, "geodesic", n_samples=10)

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import _gmds_kernel as _kernel
 from ._project import project_among
-from .errors import GromovWarning
+from .errors import GromovWarning, MetricError
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
                    norm_value, parse_norm, trimmed_rms)
 from .mesh import Mesh, as_mesh, as_shape
@@ -137,6 +137,7 @@ class ShapeMetric:
         self._samples: dict = {}
         self._descriptors: np.ndarray | None = None
         self._diameter: float | None = None
+        self._finite: bool | None = None
         self._owned = None
         self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
@@ -174,8 +175,17 @@ class ShapeMetric:
         if self._diameter is None:
             d = self.distances
             top = float(d.max())  # one pass; the masked maximum only when components are apart
-            self._diameter = top if np.isfinite(top) else float(np.max(d, where=np.isfinite(d), initial=0.0))
+            self._finite = bool(np.isfinite(top))
+            self._diameter = top if self._finite else float(np.max(d, where=np.isfinite(d), initial=0.0))
         return self._diameter
+
+    @property
+    def finite(self) -> bool:
+        """Whether every distance between working vertices is finite (False for a shape in
+        pieces in the geodesic metric: a mesh with several components, a point cloud whose
+        nearest-neighbour graph falls apart)."""
+        self.diameter
+        return self._finite
 
     @property
     def descriptors(self) -> np.ndarray:
@@ -1097,6 +1107,12 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"n_samples must be at least 3, got {n_samples}")
     # a point cloud has no faces: images stay at points (the initial search's discrete maps)
     discrete = not (sx.has_faces and sy.has_faces)
+    for name, s in (("X", sx), ("Y", sy)):
+        if discrete and not s.finite:   # (on meshes SurfaceDistance says so)
+            raise MetricError(f"{name}: matching needs finite distances, got inf or NaN (a shape in "
+                              f"pieces: a point cloud whose {s.metric} neighbour graph falls apart -- "
+                              "give the geodesic metric more neighbours, metric_options={'k': ...} -- "
+                              "or a mesh with several components: use Mesh.largest_component())")
     if discrete and radius is not None:
         raise ValueError("radius (partial matching) weighs the GMDS refinement on the surfaces, which "
                          "needs triangle meshes; X or Y is a point cloud")
