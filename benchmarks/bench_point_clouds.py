@@ -1,6 +1,9 @@
 """Matching point clouds: the same TOSCA pairs as meshes and as clouds of their vertices.
 
-Run:  .venv/bin/python benchmarks/bench_point_clouds.py [--data DIR] [--json OUT]
+Run:  .venv/bin/python benchmarks/bench_point_clouds.py [--data DIR] [--json OUT] [--diagnostics]
+      .venv/bin/python benchmarks/bench_point_clouds.py --pairs wolf0-wolf1,wolf0-wolf2,horse0-horse5,\
+          horse0-horse6,centaur0-centaur1,centaur0-centaur5,michael0-michael1,michael0-michael6 \
+          --metrics diffusion --kinds cloud --neighbors 10,20,30      (how POINT_CLOUD_NEIGHBORS was chosen)
 
 ``gromov.match`` takes point clouds (an ``(n, 3)`` array, a :class:`gromov.PointCloud`, a file
 without faces). A cloud's working set is 3,000 farthest points in space; the geodesic metric is
@@ -13,7 +16,14 @@ vertices of each pose drawn at random (different points on the two shapes; groun
 vertex index): the mean geodesic error of the 100 sample images over cls1's geodesic diameter,
 on cls1's working mesh (fast marching), of the direct and the mirrored reading ("best": the
 better of the two, as in ``bench_match.py``) and the seconds of the whole ``match`` call
-(working set, metric, match).
+(working set, metric, match). Means over the pairs per metric and input.
+
+``--diagnostics`` adds two measurements of where the clouds lose accuracy: the meshes matched
+with their images kept at vertices (the discrete maps a cloud gets; ``ShapeMetric.has_faces``
+patched to False), and, for david0, david1, victoria1 and cat1, how the geodesic distances of
+the cloud (Dijkstra on its k-nearest-neighbour graph, k = 4, 6, 10) between 200 random working
+points compare with the surface's (the heat method on the input mesh): the median ratio and
+the share of pairs shortened by more than 20% (shortcuts between parts that pass close in space).
 """
 
 from __future__ import annotations
@@ -33,19 +43,31 @@ from gromov.metrics.diffusion import correspondence_options
 from gromov.mesh import PointCloud
 
 CLASSES = ("cat", "dog", "david", "victoria")
+KINDS = ("mesh", "cloud", "half cloud")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
     ap.add_argument("--samples", type=int, default=100)
+    ap.add_argument("--pairs", default=",".join(f"{c}0-{c}1" for c in CLASSES),
+                    help="pairs X-Y of TOSCA shapes of one class (default: cls0-cls1 of cat, dog, david, victoria)")
+    ap.add_argument("--metrics", default="geodesic,diffusion")
+    ap.add_argument("--kinds", default=",".join(KINDS), help="of: " + ", ".join(KINDS))
+    ap.add_argument("--neighbors", default=None,
+                    help="diffusion on clouds with each of these neighbour counts of the robust Laplacian, "
+                         "e.g. 10,20,30 (default: the library's default)")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--diagnostics", action="store_true")
     args = ap.parse_args(argv)
     tosca = Path(args.data) / "tosca"
-    res = {"samples": args.samples, "rows": {}}
-    print(f"{'pair':<22}{'metric':<11}{'input':<13}{'direct':>9}{'mirrored':>10}{'best':>8}{'rel. GH':>9}{'seconds':>9}")
-    for cls in CLASSES:
-        x_in, y_in = gromov.load(tosca / f"{cls}0.off.gz"), gromov.load(tosca / f"{cls}1.off.gz")
+    kinds = args.kinds.split(",")
+    neighbors = [None] if args.neighbors is None else [int(k) for k in args.neighbors.split(",")]
+    res = {"samples": args.samples, "pairs": args.pairs, "rows": {}}
+    print(f"{'pair':<24}{'metric':<11}{'input':<18}{'direct':>9}{'mirrored':>10}{'best':>8}{'rel. GH':>9}{'seconds':>9}")
+    for pair in args.pairs.split(","):
+        a, b = pair.split("-")
+        x_in, y_in = gromov.load(tosca / f"{a}.off.gz"), gromov.load(tosca / f"{b}.off.gz")
         sym = reflection_map(x_in)
         ywork = ShapeMetric(y_in, "geodesic")   # where errors are measured
         rng = np.random.default_rng(0)
@@ -55,27 +77,77 @@ def main(argv=None):
                   "cloud": (x_in.vertices, y_in.vertices),
                   "half cloud": (PointCloud(x_in.vertices[half_x], input_ids=half_x),
                                  PointCloud(y_in.vertices[half_y], input_ids=half_y))}
-        for metric in ("geodesic", "diffusion"):
-            opts = correspondence_options(metric, None)
-            for kind, (x, y) in inputs.items():
-                t = time.perf_counter()
-                r = match(x, y, metric, n_samples=args.samples, metric_options=opts)
-                dt = time.perf_counter() - t
-                # input ids of the clouds are vertex ids of the meshes: ground truth is the identity
-                err = correspondence_error(r, ywork, symmetry=sym)
-                row = {"direct": err.mean, "mirrored": err.mirrored_mean, "best": err.best,
-                       "relative_distance": r.relative_distance, "seconds": dt}
-                res["rows"][f"{cls}/{metric}/{kind}"] = row
-                print(f"{cls + '0 -> ' + cls + '1':<22}{metric:<11}{kind:<13}{row['direct']:>9.4f}"
-                      f"{row['mirrored']:>10.4f}{row['best']:>8.4f}{r.relative_distance:>9.4f}{dt:>9.2f}",
-                      flush=True)
-    for metric in ("geodesic", "diffusion"):
-        for kind in ("mesh", "cloud", "half cloud"):
-            vals = [v["best"] for k, v in res["rows"].items() if k.endswith(f"/{metric}/{kind}")]
-            res.setdefault("mean_best", {})[f"{metric}/{kind}"] = float(np.mean(vals))
-            print(f"mean best, {metric}, {kind}: {np.mean(vals):.4f}")
+        for metric in args.metrics.split(","):
+            for kind in kinds:
+                x, y = inputs[kind]
+                for nb in (neighbors if metric == "diffusion" and kind != "mesh" else [None]):
+                    opts = correspondence_options(metric, None if nb is None else {"neighbors": nb})
+                    label = kind if nb is None else f"{kind} n={nb}"
+                    t = time.perf_counter()
+                    r = match(x, y, metric, n_samples=args.samples, metric_options=opts)
+                    dt = time.perf_counter() - t
+                    # input ids of the clouds are vertex ids of the meshes: the truth is the identity
+                    err = correspondence_error(r, ywork, symmetry=sym)
+                    row = {"direct": err.mean, "mirrored": err.mirrored_mean, "best": err.best,
+                           "relative_distance": r.relative_distance, "seconds": dt}
+                    res["rows"][f"{pair}/{metric}/{label}"] = row
+                    print(f"{a + ' -> ' + b:<24}{metric:<11}{label:<18}{row['direct']:>9.4f}"
+                          f"{row['mirrored']:>10.4f}{row['best']:>8.4f}{r.relative_distance:>9.4f}{dt:>9.2f}",
+                          flush=True)
+    for key in sorted({k.split("/", 1)[1] for k in res["rows"]}):
+        vals = [v["best"] for k, v in res["rows"].items() if k.split("/", 1)[1] == key]
+        res.setdefault("mean_best", {})[key] = float(np.mean(vals))
+        print(f"mean best, {key}: {np.mean(vals):.4f}")
+    if args.diagnostics:
+        res["discrete_mesh_maps"] = _discrete_mesh_maps(tosca, args.samples)
+        res["shortcuts"] = _shortcuts(tosca)
     write_results(args.json, res)
     return res
+
+
+def _discrete_mesh_maps(tosca: Path, samples: int) -> dict:
+    """The meshes' correspondences with the images kept at vertices (no GMDS refinement)."""
+    out = {}
+    for cls in CLASSES:
+        x_in, y_in = gromov.load(tosca / f"{cls}0.off.gz"), gromov.load(tosca / f"{cls}1.off.gz")
+        sym, ywork = reflection_map(x_in), ShapeMetric(y_in, "geodesic")
+        for metric in ("geodesic", "diffusion"):
+            opts = correspondence_options(metric, None)
+            sx, sy = (ShapeMetric(m, metric, metric_options=opts) for m in (x_in, y_in))
+            ShapeMetric.has_faces = property(lambda s: False)   # match's path for point clouds
+            try:
+                r = match(sx, sy, metric, n_samples=samples)
+            finally:
+                del ShapeMetric.has_faces
+                ShapeMetric.has_faces = _HAS_FACES
+            out[f"{cls}/{metric}"] = best = correspondence_error(r, ywork, symmetry=sym).best
+            print(f"discrete map on the meshes, {cls}, {metric}: best {best:.4f}", flush=True)
+    return out
+
+
+def _shortcuts(tosca: Path) -> dict:
+    """Cloud geodesics (k-NN Dijkstra) against surface geodesics between 200 working points."""
+    from gromov.metrics import metric_solver
+
+    out = {}
+    for name in ("david0", "david1", "victoria1", "cat1"):
+        m = gromov.load(tosca / f"{name}.off.gz")
+        cloud = ShapeMetric(m.vertices, "geodesic")
+        sub = np.random.default_rng(0).choice(cloud.mesh.n_vertices, 200, replace=False)
+        ids = cloud.working.vertex_ids[sub]
+        surface = metric_solver(m, "geodesic", method="heat").from_sources(ids)[:, ids]
+        off = ~np.eye(200, dtype=bool)
+        for k in (4, 6, 10):
+            d = metric_solver(cloud.mesh, "geodesic", k=k).from_sources(sub)[:, sub]
+            ratio = d[off] / surface[off]
+            out[f"{name}/k{k}"] = row = {"median_ratio": float(np.median(ratio)),
+                                         "shortened_20pct": float((ratio < 0.8).mean())}
+            print(f"{name}, k = {k}: median cloud / surface geodesic {row['median_ratio']:.3f}, "
+                  f"pairs shortened by > 20%: {100 * row['shortened_20pct']:.1f}%", flush=True)
+    return out
+
+
+_HAS_FACES = ShapeMetric.has_faces
 
 
 if __name__ == "__main__":

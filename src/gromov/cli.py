@@ -687,8 +687,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.set_defaults(func=cmd_distances)
 
     q = sub.add_parser("match", help="Gromov-Hausdorff distance and correspondence of two shapes")
-    q.add_argument("x", help="first mesh")
-    q.add_argument("y", help="second mesh")
+    q.add_argument("x", help="first mesh (or point cloud: a file without faces; its images are points, "
+                             "face -1 in --out)")
+    q.add_argument("y", help="second mesh (or point cloud)")
     _add_metric_args(q, "normalized (the correspondence's; raw when --tau is given)")
     q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
     q.add_argument("--norm", type=_norm_arg, default="l2", help="l2 (default), linf or p:VALUE")
