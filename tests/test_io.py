@@ -971,3 +971,18 @@ def test_tosca_cat_meshio_round_trip(data_dir, tmp_path, ext):
     back = load_quiet(tmp_path / f"cat0.{ext}")
     np.testing.assert_array_equal(back.vertices, cat.vertices)
     np.testing.assert_array_equal(back.faces, cat.faces)
+
+
+@needs_meshio
+def test_meshio_warnings_become_gromov_warnings_naming_the_file(tmp_path, capfd):
+    import meshio
+
+    # a Gmsh 2.2 file whose last section is never closed: meshio warns and reads the rest
+    p = tmp_path / "open.msh"
+    p.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n"
+                 "$EndNodes\n$Elements\n1\n1 2 2 0 0 1 2 3\n$EndElements\n$Comments\nnot closed\n")
+    with pytest.warns(GromovWarning, match=r"open\.msh: meshio: \$Comments not closed"):
+        m = load(p)
+    assert m.n_faces == 1
+    assert capfd.readouterr().err == ""               # nothing printed behind the warnings' back
+    assert meshio.gmsh.common.warn is meshio._common.warn   # meshio's own function put back

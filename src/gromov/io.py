@@ -73,11 +73,13 @@ VTK ``.vtk``/``.vtu``, Gmsh ``.msh``, Medit ``.mesh`` (optional, meshio)
     decompressed into a temporary file for meshio (and written through one).
 
 Polygons with more than three vertices are split into triangle fans, with a
-:class:`~gromov.errors.GromovWarning`.
+:class:`~gromov.errors.GromovWarning`. So are meshio's own warnings (which it would print to
+stderr through rich, out of reach of ``warnings`` filters): ``GromovWarning("FILE: meshio: ...")``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import logging
 import os
@@ -989,6 +991,30 @@ def _import_meshio(name: str, verb: str, ext: str):
     return meshio
 
 
+@contextlib.contextmanager
+def _meshio_warnings(meshio, name: str):
+    """Turn meshio's warnings into :class:`GromovWarning` s naming the file while it reads or
+    writes one. meshio prints them to stderr itself (``meshio._common.warn``, through rich), where
+    ``warnings`` filters and logging cannot reach them; each of its format modules holds its own
+    reference to that function, so the references are swapped for the call and put back."""
+    import sys
+
+    original = meshio._common.warn
+
+    def forward(string, highlight: bool = True) -> None:
+        warnings.warn(f"{name}: meshio: {string}", GromovWarning, stacklevel=2)
+
+    holders = [m for k, m in list(sys.modules.items())
+               if (k == "meshio" or k.startswith("meshio.")) and getattr(m, "warn", None) is original]
+    for m in holders:
+        m.warn = forward
+    try:
+        yield
+    finally:
+        for m in holders:
+            m.warn = original
+
+
 def _meshio_read_errors(meshio) -> tuple[type[BaseException], ...]:
     """What meshio's readers raise on malformed files (seen by fuzzing meshio 5.3)."""
     corrupt = getattr(getattr(meshio, "_exceptions", None), "CorruptionError", meshio.ReadError)
@@ -1004,7 +1030,8 @@ def _read_meshio(path: Path, gz: bool, ext: str) -> RawShape:
 
     def read(file: str):
         try:
-            return reader(file)
+            with _meshio_warnings(meshio, name):
+                return reader(file)
         except errors as exc:
             msg = str(exc).replace(file, name)
             raise _err(name, f"cannot read as {fmt.label} with meshio ({type(exc).__name__}"
@@ -1067,11 +1094,13 @@ def _write_meshio(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
     mesh = meshio.Mesh(shape.vertices, cells)
     writer = getattr(meshio, fmt.module).write
     if not gz:
-        writer(name, mesh, **dict(fmt.write_options))
+        with _meshio_warnings(meshio, name):
+            writer(name, mesh, **dict(fmt.write_options))
         return
     with tempfile.TemporaryDirectory(prefix="gromov-") as tmp:
         file = Path(tmp) / f"mesh.{ext}"
-        writer(str(file), mesh, **dict(fmt.write_options))
+        with _meshio_warnings(meshio, name):
+            writer(str(file), mesh, **dict(fmt.write_options))
         _write_bytes(path, file.read_bytes(), True)
 
 
