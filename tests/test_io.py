@@ -137,7 +137,7 @@ def test_stl_of_arbitrary_mesh_same_triangles(tmp_path, sphere):
 
 @pytest.mark.parametrize("name", with_meshio(["p.off", "p.obj", "p.ply", "p.ply.gz", "p.off.gz",
                                               "p.mat", "p.mat.gz", "p.vtk", "p.vtu", "p.msh",
-                                              "p.mesh", "p.msh.gz"]))
+                                              "p.mesh", "p.msh.gz", "p.xyz", "p.xyz.gz"]))
 def test_point_cloud_round_trip(tmp_path, name):
     pts = np.random.default_rng(0).normal(size=(50, 3))
     save(PointCloud(pts), tmp_path / name)
@@ -161,7 +161,7 @@ def test_extension_case_insensitive_and_str_path(tmp_path, sphere):
 
 
 def test_registry_covers_formats():
-    assert {"off", "obj", "ply", "stl", "vert", "tri", "mat", *MESHIO} <= set(FORMATS)
+    assert {"off", "obj", "ply", "stl", "vert", "tri", "mat", "xyz", *MESHIO} <= set(FORMATS)
     for fmt in FORMATS.values():
         assert callable(fmt.read) and callable(fmt.write)
 
@@ -352,19 +352,20 @@ def test_directory(tmp_path):
 
 
 def test_unknown_extension_lists_supported(tmp_path):
-    path = write(tmp_path / "mesh.xyz", "1 2 3\n")
-    with raises_naming(path, match=r"unknown mesh format \(extension '\.xyz'\).*\.off.*\.obj"
-                                   r".*\.ply.*\.stl.*\.vert.*\.tri.*\.mat.*\.vtk.*\.vtu.*\.msh"
+    path = write(tmp_path / "mesh.abc", "1 2 3\n")
+    with raises_naming(path, match=r"unknown mesh format \(extension '\.abc'\).*\.off.*\.obj"
+                                   r".*\.ply.*\.stl.*\.vert.*\.tri.*\.xyz.*\.mat.*\.vtk.*\.vtu.*\.msh"
                                    r".*\.mesh \(each optionally followed by \.gz\)"):
         load(path)
     with raises_naming(tmp_path / "noext", match="no extension"):
         load(tmp_path / "noext")
-    with raises_naming(path, match="unknown file_type 'xyz'"):
-        load(path, file_type="xyz")
+    with raises_naming(path, match="unknown file_type 'abc'"):
+        load(path, file_type="abc")
 
 
 @pytest.mark.parametrize("name,text", [("e.off", ""), ("e.off", "  \n\n"), ("e.obj", ""),
                                        ("e.ply", ""), ("e.stl", ""), ("e.vert", ""), ("e.mat", ""),
+                                       ("e.xyz", ""), ("e.xyz", "# only a comment\n"),
                                        *[pytest.param(f"e.{e}", "", marks=needs_meshio)
                                          for e in MESHIO]])
 def test_empty_file(tmp_path, name, text):
@@ -986,3 +987,25 @@ def test_meshio_warnings_become_gromov_warnings_naming_the_file(tmp_path, capfd)
     assert m.n_faces == 1
     assert capfd.readouterr().err == ""               # nothing printed behind the warnings' back
     assert meshio.gmsh.common.warn is meshio._common.warn   # meshio's own function put back
+
+
+
+def test_xyz_point_clouds(tmp_path, sphere):
+    p = tmp_path / "scan.xyz"
+    # blanks or commas, extra values per point ignored, comments and blank lines skipped
+    p.write_text("# a scan\n0 0 0 0.1 0.2 0.3\n1.5,0,0\n\n0 1 -2e-3 255 0 0  # red\n")
+    cloud = load(p)
+    assert type(cloud) is PointCloud
+    np.testing.assert_array_equal(cloud.vertices, [[0, 0, 0], [1.5, 0, 0], [0, 1, -2e-3]])
+    with pytest.raises(MeshFormatError, match=r"bad\.xyz: line 2: point needs 3 values, found 2"):
+        (tmp_path / "bad.xyz").write_text("0 0 0\n1 2\n")
+        load(tmp_path / "bad.xyz")
+    with pytest.raises(MeshFormatError, match=r"word\.xyz: line 1: non-numeric value 'x'"):
+        (tmp_path / "word.xyz").write_text("x y z\n")
+        load(tmp_path / "word.xyz")
+    with pytest.raises(MeshFormatError, match="empty"):
+        (tmp_path / "empty.xyz").write_text("# nothing\n")
+        load(tmp_path / "empty.xyz")
+    with pytest.raises(MeshFormatError, match="would lose the mesh's faces"):
+        save(sphere, tmp_path / "mesh.xyz")
+    assert not (tmp_path / "mesh.xyz").exists()

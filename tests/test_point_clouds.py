@@ -181,9 +181,9 @@ def test_cli_matches_point_cloud_files(tmp_path):
     pts = bumpy_torus_points(450)
     y, perm = moved(pts)
     gromov.save(PointCloud(pts), tmp_path / "x.ply")
-    gromov.save(PointCloud(y), tmp_path / "y.xyz.off")   # an OFF file without faces
+    gromov.save(PointCloud(y), tmp_path / "y.xyz")
     out = tmp_path / "m.npz"
-    cmd = [sys.executable, "-m", "gromov", "match", str(tmp_path / "x.ply"), str(tmp_path / "y.xyz.off"),
+    cmd = [sys.executable, "-m", "gromov", "match", str(tmp_path / "x.ply"), str(tmp_path / "y.xyz"),
            "--metric", "euclidean", "--samples", "20", "--json", "--out", str(out)]
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
@@ -220,3 +220,20 @@ def test_a_cloud_in_pieces_is_refused_clearly():
     assert ShapeMetric(pts, "geodesic", resolution=None).finite
     with pytest.raises(gromov.MetricError, match="X: matching needs finite distances"):
         match(s, pts, "geodesic", n_samples=10)
+
+
+def test_cli_pairwise_recognises_point_clouds(tmp_path):
+    # two shapes, each sampled twice at other random points: recognition of clouds by gh_matrix
+    files = []
+    for name, scale in (("thin", 1.0), ("thick", 1.6)):
+        for seed in (1, 2):
+            f = tmp_path / f"{name}{seed}.xyz"
+            gromov.save(PointCloud(bumpy_torus_points(500, seed=seed) * [1.0, 1.0, scale]), f)
+            files.append(str(f))
+    res = subprocess.run([sys.executable, "-m", "gromov", "pairwise", *files, "--samples", "20",
+                          "--labels-from-names", "--jobs", "1", "--json"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert d["eer"] == 0.0
+    D = np.array(d["relative_trimmed_distance"])
+    assert D[0, 1] < min(D[0, 2], D[0, 3]) and D[2, 3] < min(D[2, 0], D[2, 1])

@@ -668,8 +668,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     q = sub.add_parser("info", help="counts, topology, diameter and bounding box of a mesh")
-    q.add_argument("mesh", help="OFF, OBJ, PLY, STL, MAT, TOSCA .vert/.tri (optionally .gz); "
-                                "VTK, VTU, Gmsh, Medit with gromov[formats]")
+    q.add_argument("mesh", help="OFF, OBJ, PLY, STL, MAT, TOSCA .vert/.tri, XYZ point clouds (optionally "
+                                ".gz); VTK, VTU, Gmsh, Medit with gromov[formats]")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_info)
 

@@ -51,6 +51,11 @@ STL
 TOSCA ``.vert``/``.tri``
     ``.vert``: one ``x y z`` per line; ``.tri``: one triangle per line, 1-based.
     Loading either file reads both; saving writes both.
+XYZ ``.xyz`` (point clouds)
+    One point per line, ``x y z`` separated by blanks or commas; further values on a line
+    (normals, colours, intensities) are ignored; ``#`` comments and blank lines are skipped.
+    Always a point cloud. Written as ``x y z`` lines in shortest round-trip form (exact);
+    a mesh is refused (its faces would be lost: save ``PointCloud(mesh.vertices)``).
 MATLAB ``.mat``
     The TOSCA/SHREC layout: one struct (TOSCA calls it ``surface``, any name is accepted)
     with column vectors ``X``, ``Y``, ``Z`` and an optional m x 3 matrix ``TRIV`` of
@@ -804,6 +809,25 @@ def _read_tosca(path: Path, gz: bool, ext: str) -> RawShape:
     return RawShape(vertices, counts, flat, 1, vname, tname, vnums, tnums)
 
 
+# --------------------------------------------------------------------------- XYZ
+def _parse_xyz(data: bytes, name: str) -> RawShape:
+    text = _decode(data)
+    if "," in text:
+        text = text.replace(",", " ")
+    rows, nums = _content_lines(text)
+    if not rows:
+        raise _err(name, "file is empty: an .xyz file needs one 'x y z' line per point")
+    return RawShape(_float_rows(rows, nums, name, "point", 3, exact=False), None, None, 0, name, name,
+                    nums, None)
+
+
+def _format_xyz(shape: PointCloud, name: str) -> bytes:
+    if isinstance(shape, Mesh):
+        raise _err(name, "an .xyz file holds points only and would lose the mesh's faces; save a "
+                         "mesh as .ply, .off or .obj, or its points as PointCloud(mesh.vertices)")
+    return _repr_rows(shape.vertices).encode()
+
+
 def _write_tosca(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
     if not isinstance(shape, Mesh):
         raise _err(str(path), "a .vert/.tri pair needs triangles; save a point cloud as .ply, "
@@ -1180,6 +1204,8 @@ FORMATS: dict[str, FileFormat] = {
     "tri": FileFormat("TOSCA .vert/.tri pair (1-based triangles)",
                       lambda p, gz: _read_tosca(p, gz, "tri"),
                       lambda s, p, gz: _write_tosca(s, p, gz, "tri")),
+    "xyz": FileFormat("XYZ point cloud, text (x y z per line)", _bytes_reader(_parse_xyz),
+                      _bytes_writer(_format_xyz)),
     "mat": FileFormat("MATLAB v4-v7 MAT-file, TOSCA/SHREC struct with X, Y, Z and 1-based TRIV",
                       _bytes_reader(_parse_mat), _bytes_writer(_format_mat)),
     **{ext: FileFormat(f"{fmt.label} via meshio (optional: pip install \"gromov[formats]\")",
