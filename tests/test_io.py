@@ -976,18 +976,47 @@ def test_tosca_cat_meshio_round_trip(data_dir, tmp_path, ext):
 
 @needs_meshio
 def test_meshio_warnings_become_gromov_warnings_naming_the_file(tmp_path, capfd):
+    import threading
+
     import meshio
 
-    # a Gmsh 2.2 file whose last section is never closed: meshio warns and reads the rest
-    p = tmp_path / "open.msh"
-    p.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n"
-                 "$EndNodes\n$Elements\n1\n1 2 2 0 0 1 2 3\n$EndElements\n$Comments\nnot closed\n")
+    def open_msh(path):   # a Gmsh 2.2 file whose last section is never closed: meshio warns
+        path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n"
+                        "$EndNodes\n$Elements\n1\n1 2 2 0 0 1 2 3\n$EndElements\n$Comments\nnot closed\n")
+        return path
+
+    p = open_msh(tmp_path / "open.msh")
     with pytest.warns(GromovWarning, match=r"open\.msh: meshio: \$Comments not closed"):
         m = load(p)
     assert m.n_faces == 1
     assert capfd.readouterr().err == ""               # nothing printed behind the warnings' back
-    assert meshio.gmsh.common.warn is meshio._common.warn   # meshio's own function put back
+    # outside our reads meshio's own behaviour is kept: it prints, and no GromovWarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GromovWarning)
+        meshio.gmsh.common.warn("from elsewhere")
+    assert "from elsewhere" in capfd.readouterr().err
+    # several threads inside at once: each warning names its own thread's file
+    from gromov.io import _meshio_warnings
 
+    barrier = threading.Barrier(6)
+
+    def inside(k):
+        with _meshio_warnings(meshio, f"file{k}"):
+            barrier.wait()
+            meshio.gmsh.common.warn(f"from {k}")
+            barrier.wait()
+
+    with warnings.catch_warnings(record=True) as got:
+        warnings.simplefilter("always")
+        threads = [threading.Thread(target=inside, args=(k,)) for k in range(6)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    msgs = sorted(str(w.message) for w in got if issubclass(w.category, GromovWarning))
+    assert msgs == sorted(f"file{k}: meshio: from {k}" for k in range(6))
+    meshio.gmsh.common.warn("after the threads")    # and none of them left its name behind
+    assert "after the threads" in capfd.readouterr().err
 
 
 def test_xyz_point_clouds(tmp_path, sphere):
@@ -1006,6 +1035,11 @@ def test_xyz_point_clouds(tmp_path, sphere):
     with pytest.raises(MeshFormatError, match="empty"):
         (tmp_path / "empty.xyz").write_text("# nothing\n")
         load(tmp_path / "empty.xyz")
+    (tmp_path / "csv.xyz").write_text("1.5, 2, 3\n4,5,6,7\n")   # comma-separated, blanks beside commas
+    np.testing.assert_array_equal(load(tmp_path / "csv.xyz").vertices, [[1.5, 2, 3], [4, 5, 6]])
+    with pytest.raises(MeshFormatError, match=r"dec\.xyz: line 2: both commas and blanks.*decimal commas"):
+        (tmp_path / "dec.xyz").write_text("1 2 3\n1,5 2,25 3,0\n")
+        load(tmp_path / "dec.xyz")
     with pytest.raises(MeshFormatError, match="would lose the mesh's faces"):
         save(sphere, tmp_path / "mesh.xyz")
     assert not (tmp_path / "mesh.xyz").exists()

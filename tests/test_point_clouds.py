@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -116,9 +117,11 @@ def test_a_mesh_and_the_cloud_of_its_vertices():
     m = Mesh(w.vertices, w.faces)   # numbered 0..n-1 (a working mesh keeps its input's ids)
     pts = m.vertices
     y, perm = moved(pts, seed=3)
-    # the euclidean metric is the same on both: GH 0; images on the mesh are points of its
-    # faces, images on the cloud its points
-    r = match(m, y, "euclidean", n_samples=25, resolution=None)
+    # the euclidean metric is the same on both: GH 0 (and no warning about mixing the two);
+    # images on the mesh are points of its faces, images on the cloud its points
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gromov.GromovWarning)
+        r = match(m, y, "euclidean", n_samples=25, resolution=None)
     assert r.relative_distance < 1e-3
     assert np.all(r.x_to_y_face == -1)
     np.testing.assert_array_equal(perm[r.x_to_y_vertex], r.x_samples)
@@ -237,3 +240,73 @@ def test_cli_pairwise_recognises_point_clouds(tmp_path):
     assert d["eer"] == 0.0
     D = np.array(d["relative_trimmed_distance"])
     assert D[0, 1] < min(D[0, 2], D[0, 3]) and D[2, 3] < min(D[2, 0], D[2, 1])
+
+
+def test_repeated_points_are_kept_once():
+    pts = bumpy_torus_points(600)
+    twice = np.vstack([pts, pts[:50], np.repeat(pts[:1], 30, axis=0)])   # 80 repeats
+    with pytest.warns(gromov.GromovWarning, match="80 of its 680 points repeat"):
+        w = working_cloud(PointCloud(twice), None)
+    np.testing.assert_array_equal(w.vertex_ids, np.arange(600))
+    np.testing.assert_array_equal(w.source_nearest[600:650], np.arange(50))   # each copy at its place
+    assert np.all(w.source_nearest[650:] == 0)
+    assert not w.vertex_ids.flags.writeable and not w.source_nearest.flags.writeable
+    # so the copies change nothing: GH 0 to the cloud without them, in both metrics
+    y, perm = moved(pts)
+    for metric in ("geodesic", "diffusion"):
+        with pytest.warns(gromov.GromovWarning, match="repeat"):
+            r = match(twice, y, metric, n_samples=20, resolution=None)
+        assert r.relative_distance < 1e-3
+
+
+def test_clouds_of_a_few_points():
+    pts = bumpy_torus_points(15)     # fewer points than the Laplacian's 20 neighbours
+    r = match(pts, pts[::-1].copy(), "diffusion", n_samples=5)
+    assert r.relative_distance < 1e-9
+    with pytest.raises(gromov.MetricError, match="at least 4 points"):
+        match(pts[:3], pts[:3], "diffusion", n_samples=3)
+
+
+@pytest.mark.parametrize("metric", ["geodesic", "diffusion"])
+def test_a_mesh_matched_with_a_cloud_is_warned_about(metric):
+    w = gromov.simplify(torus(40, 20), 400).mesh
+    m = Mesh(w.vertices, w.faces)
+    with pytest.warns(gromov.GromovWarning, match="Y is a point cloud and the other a mesh"):
+        r = match(m, m.vertices, metric, n_samples=15, resolution=None)
+    assert np.all(r.x_to_y_face == -1) and np.all(r.y_to_x_face >= 0)
+
+
+def test_working_shape_must_fit_the_shape():
+    pts = bumpy_torus_points(300)
+    m = gromov.simplify(torus(30, 15), 200).mesh
+    with pytest.raises(TypeError, match="a WorkingCloud was given for a Mesh"):
+        ShapeMetric(m, "euclidean", working=working_cloud(PointCloud(m.vertices), None))
+    with pytest.raises(TypeError, match="a WorkingMesh was given for a PointCloud"):
+        ShapeMetric(pts, "euclidean", working=gromov.simplify(m, 100))
+    s = ShapeMetric(pts, "euclidean", working=working_cloud(PointCloud(pts), 100))
+    assert s.mesh.n_vertices == 100
+
+
+def test_as_shape_reads_lists_of_points_and_objects_with_no_faces():
+    pts = bumpy_torus_points(10)
+    assert type(as_shape(pts.tolist())) is PointCloud
+
+    class Scan:   # e.g. trimesh.Trimesh(vertices, faces=None): an empty face array
+        vertices = pts
+        faces = np.zeros((0, 3), dtype=int)
+    assert type(as_shape(Scan())) is PointCloud
+
+
+def test_cli_distances_on_a_point_cloud(tmp_path):
+    pts = bumpy_torus_points(700)
+    f = tmp_path / "c.xyz"
+    gromov.save(PointCloud(pts), f)
+    out = tmp_path / "d.npz"
+    res = subprocess.run([sys.executable, "-m", "gromov", "distances", str(f), "--metric", "geodesic",
+                          "--resolution", "300", "--samples", "20", "--out", str(out)],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    a = np.load(out)
+    w = working_cloud(PointCloud(pts), 300)   # the same working set, whatever the seed
+    assert set(a["samples"].tolist()) <= set(w.vertex_ids.tolist())
+    assert a["distances"].shape == (20, 20) and np.all(np.isfinite(a["distances"]))

@@ -208,15 +208,13 @@ def cmd_info(args) -> int:
 
 
 def cmd_distances(args) -> int:
-    from .mesh import Mesh
     from .metrics import metric_solver
-    from .resolution import working_cloud, working_mesh
+    from .resolution import working_shape
     from .sampling import farthest_point_sampling
 
     shape = _load(args.mesh)
     t0 = time.perf_counter()
-    # a point cloud's working set: Euclidean farthest points (working_cloud)
-    work = working_mesh(shape, args.resolution) if isinstance(shape, Mesh) else working_cloud(shape, args.resolution)
+    work = working_shape(shape, args.resolution)   # a point cloud's: farthest points in space
     target, to_input = work.mesh, work.to_input_ids
     if args.samples is not None and args.samples > target.n_vertices:
         raise _UserError(f"--samples {args.samples} is more than the {target.n_vertices} vertices "
@@ -302,10 +300,13 @@ def cmd_match(args) -> int:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
               f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
               f"{r.n_samples} samples per shape")
+        if all(s.has_faces for s in shapes):
+            how = f"{r.n_iter} iterations, {'converged' if r.converged else 'not converged'}"
+        else:
+            how = "images at points (a point cloud: no GMDS refinement inside triangles)"
         print(f"  distortion: {r.norm} {r.distortion:.6g}, rms {r.distortion_l2:.6g}, "
               f"max {r.distortion_linf:.6g}, rms of the best-fitting 80% of pairs "
-              f"{r.distortion_trimmed:.6g}; {r.n_iter} iterations, "
-              f"{'converged' if r.converged else 'not converged'}, {r.seconds:.2f} s")
+              f"{r.distortion_trimmed:.6g}; {how}, {r.seconds:.2f} s")
         if np.isfinite(r.orientation):
             kind = ("keeps the orientation" if r.orientation > 0.5 else
                     "reverses the orientation (a mirror image)")

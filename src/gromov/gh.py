@@ -27,7 +27,7 @@ from .mesh import Mesh, as_mesh, as_shape
 from .metrics import metric_solver
 from .metrics.diffusion import correspondence_options
 from .orientation import orientation_agreements, outward_normals
-from .resolution import WorkingCloud, WorkingMesh, gather, ring_candidates, working_cloud, working_mesh
+from .resolution import WorkingCloud, WorkingMesh, gather, ring_candidates, working_shape
 from .sampling import farthest_point_sampling
 
 __all__ = ["ShapeMetric", "MatchResult", "match"]
@@ -112,7 +112,8 @@ class ShapeMetric:
         Passed to :func:`gromov.metrics.metric_solver`.
     working : WorkingMesh or WorkingCloud, optional
         Use this working mesh (e.g. ``reference.working.transfer(pose)`` to simplify the poses
-        of a class identically) instead of simplifying ``shape``.
+        of a class identically) instead of simplifying ``shape``; for a point cloud, a
+        :class:`~gromov.resolution.WorkingCloud` of it.
 
     Examples
     --------
@@ -130,7 +131,11 @@ class ShapeMetric:
         self.metric = metric
         self.metric_options = dict(metric_options or {})
         if working is None:
-            working = working_mesh(shape, resolution) if isinstance(shape, Mesh) else working_cloud(shape, resolution)
+            working = working_shape(shape, resolution)
+        elif isinstance(working, WorkingMesh) != isinstance(shape, Mesh):
+            raise TypeError(f"working: a {type(working).__name__} was given for a "
+                            f"{type(shape).__name__} (a mesh's working shape is a WorkingMesh, a point "
+                            "cloud's a WorkingCloud)")
         self.working = working
         self.solver = metric_solver(self.working.mesh, metric, **self.metric_options)
         self._surface: SurfaceDistance | None = None
@@ -927,7 +932,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         on a cloud are given as its points (``x_to_y_vertex``) with face -1 and NaN
         barycentric coordinates, images on a mesh as usual; ``orientation`` is NaN and not
         preferred (a cloud has no outward side); ``norm`` only chooses what is reported;
-        ``radius`` is refused.
+        ``radius`` is refused; with ``init`` or ``solver`` "gw" the images are the other
+        shape's samples (the coupling's argmax, not refined). A mesh matched with a cloud is
+        warned about: the two metrics are built differently.
     metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
     n_samples : int, default 100
         Farthest point samples per shape.
@@ -1096,7 +1103,13 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     metric_options = match_options_for((X, Y), metric, metric_options)
     sx = _as_shape(X, metric, resolution, metric_options, "X")
     sy = _as_shape(Y, metric, resolution, metric_options, "Y")
-    if _metric_signature(sx) != _metric_signature(sy):
+    if sx.has_faces != sy.has_faces and metric != "euclidean":   # (straight lines: the same either way)
+        warnings.warn(f"{'Y' if sx.has_faces else 'X'} is a point cloud and the other a mesh: their "
+                      f"{metric} distances are computed differently (a mesh's own construction, a "
+                      "cloud's from its nearest neighbours), so the distortion compares two metrics; "
+                      "for comparable distances match the mesh's vertices as a point cloud too",
+                      GromovWarning, stacklevel=2)
+    elif _metric_signature(sx) != _metric_signature(sy):
         warnings.warn(f"X and Y measure distances differently ({_metric_signature(sx)} vs "
                       f"{_metric_signature(sy)}): their distortion compares two different metrics; "
                       f"prepare both ShapeMetrics with the same metric_options", GromovWarning, stacklevel=2)
@@ -1107,15 +1120,15 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         raise ValueError(f"n_samples must be at least 3, got {n_samples}")
     # a point cloud has no faces: images stay at points (the initial search's discrete maps)
     discrete = not (sx.has_faces and sy.has_faces)
+    if discrete and radius is not None:
+        raise ValueError("radius (partial matching) weighs the GMDS refinement on the surfaces, which "
+                         "needs triangle meshes; X or Y is a point cloud")
     for name, s in (("X", sx), ("Y", sy)):
         if discrete and not s.finite:   # (on meshes SurfaceDistance says so)
             raise MetricError(f"{name}: matching needs finite distances, got inf or NaN (a shape in "
                               f"pieces: a point cloud whose {s.metric} neighbour graph falls apart -- "
                               "give the geodesic metric more neighbours, metric_options={'k': ...} -- "
                               "or a mesh with several components: use Mesh.largest_component())")
-    if discrete and radius is not None:
-        raise ValueError("radius (partial matching) weighs the GMDS refinement on the surfaces, which "
-                         "needs triangle meshes; X or Y is a point cloud")
     P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
     DX, DY = sx.distances, sy.distances
     dx_pp, dy_qq = DX[np.ix_(P, P)], DY[np.ix_(Q, Q)]

@@ -52,7 +52,8 @@ TOSCA ``.vert``/``.tri``
     ``.vert``: one ``x y z`` per line; ``.tri``: one triangle per line, 1-based.
     Loading either file reads both; saving writes both.
 XYZ ``.xyz`` (point clouds)
-    One point per line, ``x y z`` separated by blanks or commas; further values on a line
+    One point per line, ``x y z`` separated by blanks or by commas (not both on one line: a
+    line like ``1,5 2,25 3,0`` has decimal commas, which are refused); further values on a line
     (normals, colours, intensities) are ignored; ``#`` comments and blank lines are skipped.
     Always a point cloud. Written as ``x y z`` lines in shortest round-trip form (exact);
     a mesh is refused (its faces would be lost: save ``PointCloud(mesh.vertices)``).
@@ -85,12 +86,14 @@ stderr through rich, out of reach of ``warnings`` filters): ``GromovWarning("FIL
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import gzip
 import logging
 import os
 import re
 import struct
 import tempfile
+import threading
 import warnings
 import zlib
 from collections.abc import Callable, Sequence
@@ -810,13 +813,22 @@ def _read_tosca(path: Path, gz: bool, ext: str) -> RawShape:
 
 
 # --------------------------------------------------------------------------- XYZ
+_BLANK_BETWEEN_VALUES = re.compile(r"[^\s,]\s+[^\s,]")
+
+
 def _parse_xyz(data: bytes, name: str) -> RawShape:
-    text = _decode(data)
-    if "," in text:
-        text = text.replace(",", " ")
-    rows, nums = _content_lines(text)
+    rows, nums = _content_lines(_decode(data))
     if not rows:
         raise _err(name, "file is empty: an .xyz file needs one 'x y z' line per point")
+    commas = [k for k, row in enumerate(rows) if "," in row]
+    if commas:
+        # commas separate values only where blanks do not (a line "1,5 2,25 3,0" has decimal commas)
+        both = next((k for k in commas if _BLANK_BETWEEN_VALUES.search(rows[k].strip())), None)
+        if both is not None:
+            raise _err(name, f"line {nums[both]}: both commas and blanks between values "
+                             f"({rows[both].strip()!r}): decimal commas are not supported; separate "
+                             "values by blanks or by commas, with decimal points")
+        rows = [row.replace(",", " ") for row in rows]
     return RawShape(_float_rows(rows, nums, name, "point", 3, exact=False), None, None, 0, name, name,
                     nums, None)
 
@@ -1015,28 +1027,50 @@ def _import_meshio(name: str, verb: str, ext: str):
     return meshio
 
 
+#: The file meshio is reading or writing for us, in this thread / context (None: not ours).
+_MESHIO_FILE: contextvars.ContextVar[str | None] = contextvars.ContextVar("gromov_meshio_file", default=None)
+_MESHIO_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def _meshio_warnings(meshio, name: str):
     """Turn meshio's warnings into :class:`GromovWarning` s naming the file while it reads or
-    writes one. meshio prints them to stderr itself (``meshio._common.warn``, through rich), where
-    ``warnings`` filters and logging cannot reach them; each of its format modules holds its own
-    reference to that function, so the references are swapped for the call and put back."""
-    import sys
-
-    original = meshio._common.warn
-
-    def forward(string, highlight: bool = True) -> None:
-        warnings.warn(f"{name}: meshio: {string}", GromovWarning, stacklevel=2)
-
-    holders = [m for k, m in list(sys.modules.items())
-               if (k == "meshio" or k.startswith("meshio.")) and getattr(m, "warn", None) is original]
-    for m in holders:
-        m.warn = forward
+    writes one for us. meshio prints them to stderr itself (``meshio._common.warn``, through
+    rich), where ``warnings`` filters and logging cannot reach them, and each of its format
+    modules holds its own reference to that function. Those references are replaced once, for
+    good, by a forwarder that warns for the file named in a context variable (set here, for
+    this thread or task only) and otherwise calls meshio's function as before -- so concurrent
+    reads each name their own file, and meshio used elsewhere behaves as it always did."""
+    _install_meshio_forwarder(meshio)
+    token = _MESHIO_FILE.set(name)
     try:
         yield
     finally:
-        for m in holders:
-            m.warn = original
+        _MESHIO_FILE.reset(token)
+
+
+def _install_meshio_forwarder(meshio) -> None:
+    import sys
+
+    with _MESHIO_LOCK:
+        original = getattr(meshio._common, "_gromov_original_warn", None)
+        if original is None:
+            original = meshio._common.warn
+
+            def forward(string, highlight: bool = True) -> None:
+                name = _MESHIO_FILE.get()
+                if name is None:
+                    original(string, highlight=highlight)
+                else:
+                    warnings.warn(f"{name}: meshio: {string}", GromovWarning, stacklevel=2)
+
+            meshio._common._gromov_original_warn = original
+            meshio._common._gromov_forward = forward
+        forward = meshio._common._gromov_forward
+        # modules imported since (meshio imports its format modules lazily) get it too
+        for key, module in list(sys.modules.items()):
+            if (key == "meshio" or key.startswith("meshio.")) and getattr(module, "warn", None) is original:
+                module.warn = forward
 
 
 def _meshio_read_errors(meshio) -> tuple[type[BaseException], ...]:

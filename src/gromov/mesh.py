@@ -666,7 +666,7 @@ def as_mesh(shape, *, name: str = "shape") -> Mesh:
     return repair(Mesh(vertices, faces), source=name)[0]
 
 
-def as_shape(shape, *, name: str = "shape") -> PointCloud:
+def as_shape(shape, *, name: str = "shape") -> Mesh | PointCloud:
     """A :class:`Mesh` or, for points without faces, a :class:`PointCloud`.
 
     Parameters
@@ -674,8 +674,8 @@ def as_shape(shape, *, name: str = "shape") -> PointCloud:
     shape : Mesh, PointCloud, (vertices, faces), an ``(n, 3)`` array or an object with vertices
         What :func:`as_mesh` takes, and also point clouds: a :class:`PointCloud` is returned as
         it is; an array of shape ``(n, 3)`` (not a pair of arrays) or an object with
-        ``vertices`` (or Open3D's ``points``) and no faces becomes a :class:`PointCloud` whose
-        ``input_ids`` index the given points.
+        ``vertices`` (or Open3D's ``points``) and no faces (or an empty face array) becomes a
+        :class:`PointCloud` whose ``input_ids`` index the given points.
     name : str, default "shape"
         Used in error messages.
 
@@ -694,9 +694,15 @@ def as_shape(shape, *, name: str = "shape") -> PointCloud:
         return shape
     if isinstance(shape, np.ndarray) and shape.ndim == 2:
         return PointCloud(shape)
-    has_faces = any(hasattr(shape, a) for a in ("faces", "triangles"))
-    if not has_faces and not isinstance(shape, (tuple, list)):
+    if isinstance(shape, (tuple, list)) and len(shape) != 2:   # a list of points (a pair: vertices, faces)
+        return PointCloud(shape)
+    if not isinstance(shape, (tuple, list)):
+        faces = getattr(shape, "faces", getattr(shape, "triangles", None))
         points = getattr(shape, "vertices", getattr(shape, "points", None))
-        if points is not None:
+        if points is not None and (faces is None or np.size(faces) == 0):
             return PointCloud(points)
+        if points is None:
+            raise TypeError(f"{name} must be a gromov Mesh or PointCloud, a mesh file, a (vertices, "
+                            f"faces) pair, an (n, 3) array of points or an object with vertices (and "
+                            f"faces), got {type(shape).__name__}")
     return as_mesh(shape, name=name)

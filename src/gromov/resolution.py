@@ -19,14 +19,16 @@ a subset of the input vertices. Consequences:
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._project import project_among
+from .errors import GromovWarning
 from .mesh import Mesh, MeshError, PointCloud
 
-__all__ = ["WorkingMesh", "WorkingCloud", "simplify", "working_mesh", "working_cloud"]
+__all__ = ["WorkingMesh", "WorkingCloud", "simplify", "working_mesh", "working_cloud", "working_shape"]
 
 logger = logging.getLogger(__name__)
 
@@ -383,6 +385,11 @@ class WorkingCloud(_WorkingMaps):
         return values[self.source_nearest]
 
 
+def working_shape(shape: PointCloud, n_vertices: int | None) -> WorkingMesh | WorkingCloud:
+    """:func:`working_mesh` of a :class:`Mesh`, :func:`working_cloud` of a point cloud."""
+    return working_mesh(shape, n_vertices) if isinstance(shape, Mesh) else working_cloud(shape, n_vertices)
+
+
 def working_cloud(cloud: PointCloud, n_points: int | None) -> WorkingCloud:
     """The working subset of a point cloud: ``n_points`` farthest points in space.
 
@@ -390,7 +397,11 @@ def working_cloud(cloud: PointCloud, n_points: int | None) -> WorkingCloud:
     k-nearest-neighbour graph of the geodesic metric and the point-cloud Laplacian of the
     diffusion metric want), started from the point farthest from the centroid, so that the
     subset does not depend on the order of the points (up to ties). With ``n_points`` None or
-    not smaller than the cloud: all points.
+    not smaller than the cloud: all points -- but points with identical coordinates only once
+    (the first of them; with a ``GromovWarning``), as loading a mesh merges duplicate vertices:
+    a point and its copy are no edge of a nearest-neighbour graph, so both metrics would put
+    them far apart. Every source point maps to the working point at its place
+    (``source_nearest``).
 
     Parameters
     ----------
@@ -413,11 +424,16 @@ def working_cloud(cloud: PointCloud, n_points: int | None) -> WorkingCloud:
         raise ValueError(f"n_points must be a positive integer or None, got {n_points!r}")
     V = cloud.vertices
     if n_points is None or n_points >= n:
-        keep = np.arange(n, dtype=np.int64)
+        _, first = np.unique(V, axis=0, return_index=True)
+        keep = np.sort(first).astype(np.int64)
+        if len(keep) < n:
+            warnings.warn(f"point cloud: {n - len(keep)} of its {n} points repeat another point's "
+                          "coordinates; each place is kept once", GromovWarning, stacklevel=3)
     else:
         first = int(np.argmax(((V - V.mean(axis=0)) ** 2).sum(axis=1)))
         keep = np.sort(farthest_point_sampling(EuclideanSolver(cloud), int(n_points), first=first).indices)
     work = PointCloud(V[keep], input_ids=cloud.input_ids[keep])
     nearest = cKDTree(V[keep]).query(V)[1].astype(np.int64)
     nearest[keep] = np.arange(len(keep))   # a working point is its own, even where points coincide
+    keep.flags.writeable = nearest.flags.writeable = False
     return WorkingCloud(work, cloud, keep, nearest)

@@ -66,7 +66,9 @@ def _pair(ij):
     full = None
     if (i, j) in _KEEP:
         full = r
-        if orientation == "prefer" and not r.orientation > 0.5:  # the same run, then more
+        # mirrored: the same run, then more (NaN -- a point cloud, a non-orientable mesh --
+        # has no orientation to prefer, and "prefer" would give the same map)
+        if orientation == "prefer" and not r.orientation > 0.5 and np.isfinite(r.orientation):
             full = match(x, y, x.metric, orientation="prefer", **options)
     return r.distance, r.relative_distance, r.ranking_distance, full
 
@@ -99,7 +101,7 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
             subsets=tuple(search_subsets()), rank_tau_scale: float | None = None) -> list[ShapeMetric]:
     """Each shape's working mesh, dense metric, diameter, descriptors and samples, once.
 
-    ``shapes`` are meshes, paths or :class:`ShapeMetric` objects (whose metric must be
+    ``shapes`` are meshes, point clouds, paths or :class:`ShapeMetric` objects (whose metric must be
     ``metric``); returns the prepared ``ShapeMetric`` objects in the same order. ``subsets``:
     sizes of the vertex subsets the initial search runs on (:func:`gromov.gh.search_subsets`).
     ``rank_tau_scale``: also the heat distance recognition measures with
@@ -218,8 +220,9 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
 
     Parameters
     ----------
-    shapes : list of Mesh, paths or ShapeMetric
-        Prepared ``ShapeMetric`` objects are used as they are (their metric must be ``metric``).
+    shapes : list of Mesh, PointCloud, (n, 3) arrays, paths or ShapeMetric
+        Prepared ``ShapeMetric`` objects are used as they are (their metric must be ``metric``);
+        point clouds are matched as :func:`gromov.match` matches them (images at points).
     metric, n_samples, resolution, metric_options, seed
         As in :func:`gromov.match`.
     jobs : int, default 1

@@ -616,7 +616,10 @@ def _point_cloud_laplacian(rl, v: np.ndarray, neighbors: int = POINT_CLOUD_NEIGH
     """
     c = v - v.mean(axis=0)
     order = np.argsort(np.einsum("ij,ij->i", c, c), kind="stable")
-    lap, m = rl.point_cloud_laplacian(np.ascontiguousarray(c[order]), n_neighbors=int(neighbors))
+    if len(v) < 4:
+        raise MetricError(f"a point cloud needs at least 4 points for its Laplacian, got {len(v)}")
+    # a cloud of no more points than that: every other point is a neighbour
+    lap, m = rl.point_cloud_laplacian(np.ascontiguousarray(c[order]), n_neighbors=min(int(neighbors), len(v) - 1))
     back = np.empty_like(order)
     back[order] = np.arange(len(order))
     return sp.csr_matrix(lap)[back][:, back], sp.csr_matrix(m)[back][:, back]
