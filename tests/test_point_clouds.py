@@ -310,3 +310,18 @@ def test_cli_distances_on_a_point_cloud(tmp_path):
     w = working_cloud(PointCloud(pts), 300)   # the same working set, whatever the seed
     assert set(a["samples"].tolist()) <= set(w.vertex_ids.tolist())
     assert a["distances"].shape == (20, 20) and np.all(np.isfinite(a["distances"]))
+
+
+def test_cli_neighbours_of_point_clouds(tmp_path):
+    pts = bumpy_torus_points(400)
+    f = tmp_path / "c.xyz"
+    gromov.save(PointCloud(pts), f)
+    base = [sys.executable, "-m", "gromov", "match", str(f), str(f), "--samples", "10", "--json"]
+    for metric, key, k in (("geodesic", "k", 6), ("diffusion", "neighbors", 12)):
+        res = subprocess.run(base + ["--metric", metric, "--neighbors", str(k)], capture_output=True, text=True)
+        assert res.returncode == 0, res.stderr
+        d = json.loads(res.stdout)
+        assert d["metric_options"][key] == k and d["relative_distance"] < 1e-9
+    res = subprocess.run(base + ["--metric", "diffusion", "--kernel", "connectivity", "--neighbors", "5"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and "--neighbors applies to point clouds" in res.stderr

@@ -67,13 +67,23 @@ def _metric_options(args) -> dict:
     refine = getattr(args, "refine", None) or None  # 0: the default, as if not given
     if refine is not None and (args.metric != "geodesic" or args.geodesic_method not in (None, "fmm")):
         raise _UserError("--refine applies to --metric geodesic with the fast marching (fmm)")
+    neighbors = getattr(args, "neighbors", None)
+    if neighbors is not None and not (args.metric == "geodesic" and args.geodesic_method in (None, "dijkstra")
+                                      or args.metric == "diffusion" and args.kernel in ("heat", "biharmonic")):
+        raise _UserError("--neighbors applies to point clouds with --metric geodesic (Dijkstra) or "
+                         "--metric diffusion with --kernel heat or biharmonic")
     if args.metric == "geodesic":
         opts = {"method": args.geodesic_method} if args.geodesic_method else {}
         if refine:
             opts["refine"] = refine
+        if neighbors is not None:
+            opts["k"] = neighbors
         return opts
     if args.metric == "diffusion":
-        return _diffusion_options(args)
+        opts = _diffusion_options(args)
+        if neighbors is not None:
+            opts["neighbors"] = neighbors
+        return opts
     return {}
 
 
@@ -163,6 +173,9 @@ def _add_metric_args(p: argparse.ArgumentParser, units_default: str | None = Non
                         "biharmonic distance (heat-kernel distances integrated over all times)")
     p.add_argument("--steps", type=_positive_int, default=None,
                    help="diffusion steps m of the graph kernels (default 50)")
+    p.add_argument("--neighbors", type=_positive_int, default=None, metavar="K",
+                   help="point clouds: each point's nearest neighbours in the geodesic metric's graph "
+                        "(default 10) or in the heat / biharmonic kernels' Laplacian (default 20)")
     _add_heat_args(p, units_default)
 
 

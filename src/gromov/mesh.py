@@ -25,8 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from .errors import GromovWarning, MeshError
 
 __all__ = ["Mesh", "PointCloud", "RepairReport", "repair", "fill_holes", "component_areas", "as_vertices",
-           "as_shape",
-           "as_faces", "as_mesh"]
+           "as_faces", "as_mesh", "as_shape"]
 
 logger = logging.getLogger(__name__)
 
