@@ -325,3 +325,12 @@ def test_cli_neighbours_of_point_clouds(tmp_path):
     res = subprocess.run(base + ["--metric", "diffusion", "--kernel", "connectivity", "--neighbors", "5"],
                          capture_output=True, text=True)
     assert res.returncode == 2 and "--neighbors applies to point clouds" in res.stderr
+
+
+def test_coincident_points_are_neighbours_at_distance_zero_in_the_knn_graph():
+    from gromov.metrics import GeodesicSolver
+
+    pts = bumpy_torus_points(300)
+    twice = np.vstack([pts, pts[:5]])       # a raw cloud with repeated points (no working set)
+    d = GeodesicSolver(PointCloud(twice), k=10).from_sources(np.arange(5))
+    np.testing.assert_allclose(d[np.arange(5), 300 + np.arange(5)], 0.0, atol=1e-12)

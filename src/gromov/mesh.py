@@ -168,7 +168,10 @@ def _knn_graph(points: np.ndarray, k: int) -> sp.csr_matrix:
         raise ValueError(f"k must be in [1, {n - 1}] for {n} points, got {k}")
     dist, idx = cKDTree(points).query(points, k=k + 1)
     rows = np.repeat(np.arange(n), k)
-    g = sp.csr_matrix((dist[:, 1:].ravel(), (rows, idx[:, 1:].ravel())), shape=(n, n))
+    # coincident points are neighbours at distance 0, but a stored 0 is no edge for a sparse
+    # graph: the smallest positive float keeps it (paths through it are as long as without)
+    w = np.maximum(dist[:, 1:].ravel(), np.finfo(np.float64).tiny)
+    g = sp.csr_matrix((w, (rows, idx[:, 1:].ravel())), shape=(n, n))
     return g.maximum(g.T).tocsr()
 
 
