@@ -139,6 +139,13 @@ def _add_rank_args(p: argparse.ArgumentParser) -> None:
                    help=f"the trimmed ranking summarises the log ratios of corresponding distances "
                         f"(log: a multiplicative distortion) or their differences over the larger "
                         f"diameter (difference: before session 17; default {RANK_RESIDUAL})")
+    from .experiments.recognition import LOCAL_SCALING_K
+
+    p.add_argument("--local-scaling", type=_positive_int, default=LOCAL_SCALING_K, metavar="K",
+                   help=f"also report the EER after local scaling: each distance over the geometric "
+                        f"mean of the two shapes' distances to their K-th nearest shape (a set-level "
+                        f"normalisation, Zelnik-Manor & Perona 2004; capped at the number of shapes "
+                        f"less one; default {LOCAL_SCALING_K})")
 
 
 def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
@@ -391,7 +398,7 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
 
 def cmd_pairwise(args) -> int:
     from .experiments.pairwise import available_cpus, gh_matrix
-    from .experiments.recognition import errors_at, mds_map, roc
+    from .experiments.recognition import errors_at, local_scaling, mds_map, roc
 
     n = len(args.files)
     if n < 2:
@@ -450,12 +457,14 @@ def cmd_pairwise(args) -> int:
         lab = np.array(labels)
         result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
         same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
-        result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None)
+        result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
+                      local_scaling_k=min(args.local_scaling, n - 1))
         if same.any() and not same.all():   # else all one class, or every shape its own: no EER
             curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
             result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
                           eer_trimmed=curves["trimmed"].eer,
-                          errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold))
+                          errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold),
+                          eer_local=roc(local_scaling(D, result["local_scaling_k"]), lab).eer)
     if args.out:
         out = Path(args.out)
         if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
@@ -497,7 +506,8 @@ def cmd_pairwise(args) -> int:
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
         else:
             other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
-            print(f"  equal error rate {result['eer']:.2%} (ranked by the other: {other:.2%}), "
+            print(f"  equal error rate {result['eer']:.2%} (ranked by the other: {other:.2%}; "
+                  f"locally scaled, k = {result['local_scaling_k']}: {result['eer_local']:.2%}), "
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
             from .experiments.report import errors_text
 
@@ -629,7 +639,7 @@ def cmd_reproduce(args) -> int:
                   command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
                   classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by,
                   rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual,
-                  pose_stretch=args.pose_stretch)
+                  pose_stretch=args.pose_stretch, local_scaling=args.local_scaling)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -654,7 +664,8 @@ def cmd_reproduce(args) -> int:
         if params.get("rank_tau_scale") is not None:
             rank += (f", for diffusion measured at {params['rank_tau_scale']:g} x the diffusion time "
                      f"(--rank-tau-scale)")
-    print(f"  EERs rank pairs by {rank}; the other's EER in brackets")
+    print(f"  EERs rank pairs by {rank}; in brackets the other's EER, and the EER after local "
+          f"scaling (k = {params.get('local_scaling')}, --local-scaling)")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
@@ -663,7 +674,7 @@ def cmd_reproduce(args) -> int:
             _, exp, m = key.split(".")
             rec = r["recognition"][exp][m]
             other = rec["eer_gh"] if rec["ranked_by"] == "trimmed" else rec["eer_trimmed"]
-            alt = f"  ({other:.4f})"
+            alt = f"  ({other:.4f}; local {rec['eer_local']:.4f})"
         print(f"  {key:<34}{'-' if v is None else format(v, '.4f'):>9}{paper(key):>15.4f}{alt}")
     if r["topkids"] is not None:
         for m in ("geodesic", "diffusion"):

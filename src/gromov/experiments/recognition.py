@@ -12,6 +12,8 @@ draws tight, separated clusters of classes.
 
 - :func:`roc` and :func:`equal_error_rate` compute the exact ROC curve and the EER;
   :func:`errors_at` says which classes the errors at a threshold come from;
+- :func:`local_scaling` divides each distance by the two shapes' local scales (distance to
+  their k-th nearest neighbour in the set): a set-level normalisation, not the paper's;
 - :func:`mds_map` embeds a distance matrix in the plane (classical, Torgerson MDS);
 - :func:`plot_roc` and :func:`plot_mds` draw them to PNG files (needs ``gromov[plot]``).
 """
@@ -25,9 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ROC", "roc", "equal_error_rate", "errors_at", "mds_map", "plot_roc", "plot_mds"]
+__all__ = ["ROC", "roc", "equal_error_rate", "errors_at", "local_scaling", "LOCAL_SCALING_K", "mds_map",
+           "plot_roc", "plot_mds"]
 
 logger = logging.getLogger(__name__)
+
+#: The neighbour whose distance is a shape's local scale in :func:`local_scaling` (session 20:
+#: chosen on the validation sets -- synthetic, stretched synthetic, close people, held-out
+#: TOSCA classes -- by the geometric mean of the diffusion rankings' margins; docs/notebook.md).
+LOCAL_SCALING_K = 4
 
 #: Above this many shapes, :func:`mds_map` uses an iterative eigensolver (seeded).
 _DENSE_MAX = 1000
@@ -260,6 +268,68 @@ def errors_at(distances, labels, threshold: float, *, mask=None) -> dict:
     return {"threshold": t, "false_accept": worst_first(fa), "false_reject": worst_first(fr),
             "far": float(n_fa / n_neg) if n_neg else None,
             "frr": float(n_fr / n_pos) if n_pos else None}
+
+
+def local_scaling(distances, k: int = LOCAL_SCALING_K) -> np.ndarray:
+    """Distances divided by the local scales of the two shapes: a set-level normalisation.
+
+    Each shape ``i`` of the set gets a local scale ``sigma_i``, its distance to its ``k``-th
+    nearest other shape, and every distance is divided by the geometric mean of the two
+    scales:
+
+    .. math::
+
+        D'_{ij} = \\frac{D_{ij}}{\\sqrt{\\sigma_i \\sigma_j}}, \\qquad
+        \\sigma_i = \\text{the } k\\text{-th smallest of } \\{D_{il} : l \\ne i\\},
+
+    the local scaling of Zelnik-Manor & Perona, "Self-tuning spectral clustering", NIPS 17
+    (2004), §2 (their affinity is ``exp(-D'^2)``, a decreasing function of ``D'``). A shape
+    whose distances to *every* other shape are inflated -- a welded shape, whose weld moves
+    whole rows of its diffusion distances (docs/notebook.md, session 11) -- is brought back to
+    the scale of its neighbours, so one global threshold serves noisy and clean shapes alike.
+
+    Unlike ``D``, ``D'_{ij}`` depends on the other shapes of the set (it is transductive; no
+    labels are used): an equal error rate of ``D'`` is a property of the set, not of the pair
+    distance alone, and is reported beside, never instead of, the EER of ``D``
+    (``gromov reproduce``: ``eer_local``). A shape's nearest neighbour may change, since each
+    candidate's own scale counts.
+
+    Parameters
+    ----------
+    distances : array_like, shape (n, n)
+        Symmetric, finite, non-negative distances (as for :func:`roc`); the diagonal is
+        ignored.
+    k : int, default LOCAL_SCALING_K (4)
+        Which nearest neighbour sets the scale, ``1 <= k <= n - 1``.
+
+    Returns
+    -------
+    ndarray of float64, shape (n, n)
+        Symmetric, zero diagonal. A scale of 0 (``k`` other shapes at distance 0) is replaced
+        by the smallest positive distance of the matrix; an all-zero matrix stays zero.
+
+    Raises
+    ------
+    ValueError
+        If ``distances`` is not square, finite, symmetric and non-negative, or ``k`` is not an
+        integer in ``[1, n - 1]``.
+    """
+    d = _check_distances(distances)
+    n = d.shape[0]
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= n - 1:
+        raise ValueError(f"k must be an integer in [1, n - 1] = [1, {n - 1}], got {k!r}")
+    off = ~np.eye(n, dtype=bool)
+    if np.any(d[off] < 0):
+        raise ValueError(f"distances must be non-negative, got minimum {d[off].min():.3g}")
+    positive = d[off & (d > 0)]
+    if positive.size == 0:
+        return np.zeros_like(d)
+    others = np.where(off, d, np.inf)
+    sigma = np.partition(others, int(k) - 1, axis=1)[:, int(k) - 1]
+    sigma = np.maximum(sigma, positive.min())
+    out = d / np.sqrt(np.outer(sigma, sigma))
+    np.fill_diagonal(out, 0.0)
+    return out
 
 
 def mds_map(distances, dim: int = 2, *, seed: int = 0) -> np.ndarray:

@@ -528,9 +528,11 @@ def _recognition_rows(results: Mapping) -> tuple[list, list[str]]:
             ranked = _get(results, "recognition", exp, metric, "ranked_by")
             other = _get(results, "recognition", exp, metric,
                          "eer_gh" if ranked == "trimmed" else "eer_trimmed")
+            local = _get(results, "recognition", exp, metric, "eer_local")
             rows.append((name, metric, _pct(ours), _pct(paper) if paper is not None else "",
                          diff, verdict, _pct(nn) if nn is not None else "",
-                         _pct(other) if _num(other) is not None else ""))
+                         _pct(other) if _num(other) is not None else "",
+                         _pct(local) if _num(local) is not None else ""))
             if verdict.startswith("worse"):
                 worse.append(f"EER, {name}, {metric}: {_pct(ours)} against the paper's "
                              f"{_pct(paper)} ({diff})")
@@ -625,9 +627,21 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
         parts.append(_recognition_sets(results))
         head = ("experiment", "metric", "EER ours", "EER paper", "ours − paper", "verdict",
                 "nearest-neighbour accuracy")
-        if not other:
-            rows = [row[:-1] for row in rows]
-        parts.append(_table(head + ((other,) if other else ()), rows))
+        ks = {_get(results, "recognition", exp, m, "local_scaling_k")
+              for exp in _EXPERIMENTS for m in _METRIC_ORDER} - {None}
+        local = ""
+        if any(row[-1] for row in rows):
+            local = f"EER, locally scaled (k = {', '.join(str(k) for k in sorted(ks))})"
+            parts.append("<p>The last column is the same ranking after <em>local scaling</em>: "
+                         "each distance divided by the geometric mean of the two shapes' "
+                         "distances to their k-th nearest shape in the set (Zelnik-Manor &amp; "
+                         "Perona, NIPS 2004). It uses the whole set, not the pair alone, so it "
+                         "is not the paper's measure and is not compared with it; a weld, which "
+                         "moves a shape's distances to every other shape, is what it "
+                         "compensates (k chosen on the validation sets).</p>")
+        keep = [i for i, on in enumerate((True,) * 7 + (bool(other), bool(local))) if on]
+        rows = [tuple(row[i] for i in keep) for row in rows]
+        parts.append(_table(head + ((other,) if other else ()) + ((local,) if local else ()), rows))
         parts.append(_error_sources(results))
     parts.append(_figures_html(out_dir, figures, "recognition"))
     return "\n".join(p for p in parts if p), worse
