@@ -343,6 +343,7 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     assert res["files"] == names and res["labels"] == ["sheet", "long", "sheet", "long"]
     assert res["nearest"] == [names[2], names[3], names[0], names[1]]
     assert res["eer"] == 0.0 and res["eer_gh"] == 0.0 and res["nn_accuracy"] == 1.0
+    assert res["local_scaling_k"] == 3 and res["eer_local"] == 0.0     # k = 4 capped at n - 1
     rel = np.array(res["relative_distance"])
     trim = np.array(res["relative_trimmed_distance"])
     assert np.array_equal(rel, rel.T) and np.all(np.diag(rel) == 0)
@@ -361,7 +362,7 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     np.testing.assert_array_equal(z["distance"], np.array(res["distance"]))
     assert str(z["metric"]) == "geodesic" and int(z["n_samples"]) == 20
     assert str(z["ranked_by"]) == "trimmed" and list(z["nearest"]) == res["nearest"]
-    assert float(z["eer"]) == 0.0
+    assert float(z["eer"]) == 0.0 and float(z["eer_local"]) == res["eer_local"]
     assert png.stat().st_size > 1000
     # the same run (deterministic) as CSV, and the summary for people
     assert main([*argv, "--out", str(csv_path)]) == 0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from gromov.experiments import recognition
-from gromov.experiments.recognition import equal_error_rate, mds_map, plot_mds, plot_roc, roc
+from gromov.experiments.recognition import equal_error_rate, local_scaling, mds_map, plot_mds, plot_roc, roc
 
 
 def _matrix(n, entries):
@@ -207,6 +207,60 @@ def test_errors_at_names_the_confused_classes():
     # labels of any type roc() takes, e.g. an object array
     obj = np.array(lab, dtype=object)
     assert errors_at(D, obj, 1.3) == errors_at(D, lab, 1.3)
+
+
+# ---------------------------------------------------------------- local_scaling
+
+
+def test_local_scaling_by_hand():
+    """D'_ij = D_ij / sqrt(s_i s_j), s_i the distance to the k-th nearest other shape."""
+    # k = 1: the row minima of HAND are 1, 1, 2, 3, 4
+    s = np.array([1.0, 1.0, 2.0, 3.0, 4.0])
+    got = local_scaling(HAND, 1)
+    assert got[0, 1] == 1.0 and got[0, 2] == pytest.approx(2 / np.sqrt(2))
+    assert got[3, 4] == pytest.approx(7 / np.sqrt(12)) and got[2, 4] == pytest.approx(10 / np.sqrt(8))
+    assert np.allclose(got, HAND / np.sqrt(np.outer(s, s)) * (1 - np.eye(5)))
+    # k = 2: the second smallest of each row's other entries: 2, 5, 5, 5, 7
+    s2 = np.array([2.0, 5.0, 5.0, 5.0, 7.0])
+    assert np.allclose(local_scaling(HAND, 2), HAND / np.sqrt(np.outer(s2, s2)))
+    got = local_scaling(HAND, 3)
+    assert np.array_equal(got, got.T) and np.all(np.diag(got) == 0)
+    # dimensionless: a common unit cancels
+    assert np.allclose(local_scaling(7.5 * HAND, 2), local_scaling(HAND, 2))
+
+
+def test_local_scaling_undoes_half_of_a_shape_wide_inflation():
+    """Two classes on a line; every distance of shape 0 is inflated c = 4 times (as a weld
+    moves a whole row of the diffusion distances). One threshold no longer separates the
+    classes; after local scaling it does again. Where the other shape's scale is untouched
+    (class b: shape 0 is not among its k nearest) the inflation is exactly sqrt(c)."""
+    pos = np.array([0.0, 0.1, 0.2, 0.3, 0.4, 2.0, 2.1, 2.2, 2.3, 2.4])
+    lab = np.repeat(["a", "b"], 5)
+    D = np.abs(pos[:, None] - pos[None, :])
+    c = 4.0
+    Dc = D.copy()
+    Dc[0, :] *= c
+    Dc[:, 0] *= c
+    assert equal_error_rate(D, lab) == 0.0 and equal_error_rate(Dc, lab) > 0.0
+    assert equal_error_rate(local_scaling(Dc, 2), lab) == 0.0
+    ratio = local_scaling(Dc, 2)[0, 5:] / local_scaling(D, 2)[0, 5:]
+    assert np.allclose(ratio, np.sqrt(c))
+
+
+def test_local_scaling_of_coincident_shapes_and_errors():
+    # shapes 0 and 1 coincide: k = 1 gives them scale 0, replaced by the smallest positive
+    # distance (1), so every entry stays finite; an all-zero matrix stays zero
+    D = _matrix(3, {(0, 1): 0.0, (0, 2): 1.0, (1, 2): 1.0})
+    got = local_scaling(D, 1)
+    assert np.all(np.isfinite(got)) and got[0, 1] == 0.0 and got[0, 2] == pytest.approx(1.0)
+    assert np.array_equal(local_scaling(np.zeros((3, 3)), 2), np.zeros((3, 3)))
+    for k in (0, 5, True, 2.0, "2"):
+        with pytest.raises(ValueError, match="k must be an integer"):
+            local_scaling(HAND, k)
+    with pytest.raises(ValueError, match="non-negative"):
+        local_scaling(-HAND, 1)
+    with pytest.raises(ValueError, match="symmetric"):
+        local_scaling(np.triu(HAND), 1)
 
 
 def test_mds_recovers_a_planar_configuration():

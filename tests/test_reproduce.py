@@ -7,6 +7,7 @@ import pytest
 
 from gromov import Mesh
 from gromov.cli import main
+from gromov.experiments.recognition import LOCAL_SCALING_K, local_scaling, roc
 from gromov.experiments.reproduce import RESULT_KEYS, reflection_map, settings_for
 from gromov.shapes import grid
 
@@ -41,7 +42,13 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
             # (of log distance ratios, rank_residual: dimensionless, not comparable with d)
             assert rec[m]["ranked_by"] == "trimmed" and r["params"]["rank_by"] == "trimmed"
             assert rec[m]["eer"] == rec[m]["eer_trimmed"] and 0.0 <= rec[m]["eer_gh"] <= 1.0
+            # the locally scaled ranking's EER beside it (k capped at n - 1), recomputable
+            assert rec[m]["local_scaling_k"] == min(r["params"]["local_scaling"], n - 1)
+            local = roc(local_scaling(t, rec[m]["local_scaling_k"]), rec["labels"])
+            assert rec[m]["eer_local"] == pytest.approx(local.eer, abs=1e-9)
+            assert rec[m]["errors_at_eer_local"]["threshold"] == pytest.approx(local.eer_threshold, rel=1e-4)
     assert r["params"]["rank_tau_scale"] == 0.5 and r["params"]["rank_residual"] == "log"
+    assert r["params"]["local_scaling"] == LOCAL_SCALING_K
     # the perturbations did what they say: welds lower the Euler characteristic, holes add loops
     shapes = r["recognition"]["weld"]["shapes"]
     welded = [s for label, s in shapes.items() if "+weld" in label]
@@ -61,6 +68,7 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
     assert "trimmed distortion" in html and "EER, GH estimate" in html
     assert "heat distance at 0.5 × the diffusion time" in html   # what the diffusion ranking measures
     assert "log ratios of corresponding distances" in html       # and how it summarises residuals
+    assert f"EER, locally scaled (k = {LOCAL_SCALING_K})" in html and "Zelnik-Manor" in html
 
 
 def test_quick_run_correspondence_is_measured(quick_run):
@@ -249,12 +257,13 @@ def test_rank_by_option_reaches_reproduce(monkeypatch, tmp_path):
              ("rank_tau_scale", [], 0.5), ("rank_tau_scale", ["--rank-tau-scale", "1"], None),
              ("rank_tau_scale", ["--rank-tau-scale", "0.25"], 0.25),
              ("rank_residual", [], "log"), ("rank_residual", ["--rank-residual", "difference"], "difference"),
-             ("pose_stretch", [], 0.0), ("pose_stretch", ["--pose-stretch", "0.1"], 0.1)]
+             ("pose_stretch", [], 0.0), ("pose_stretch", ["--pose-stretch", "0.1"], 0.1),
+             ("local_scaling", [], LOCAL_SCALING_K), ("local_scaling", ["--local-scaling", "2"], 2)]
     for key, argv, want in cases:
         with pytest.raises(Stop):
             main(["reproduce", "--quick", "--out", str(tmp_path / "o")] + argv)
         assert seen[key] == want, (key, argv)
-    for bad in (["--rank-by", "median"], ["--rank-residual", "ratio"],
+    for bad in (["--rank-by", "median"], ["--rank-residual", "ratio"], ["--local-scaling", "0"],
                 *(["--rank-tau-scale", v] for v in ("0", "-1", "x", "inf"))):
         with pytest.raises(SystemExit):
             main(["reproduce", *bad])

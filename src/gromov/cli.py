@@ -477,6 +477,7 @@ def cmd_pairwise(args) -> int:
                                 labels=np.array(labels if labels is not None else [], dtype=str),
                                 ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
                                 eer=nan if result.get("eer") is None else result["eer"],
+                                eer_local=nan if result.get("eer_local") is None else result["eer_local"],
                                 metric=args.metric, options=json.dumps(options),
                                 rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
                                 rank_residual=r.rank_residual,
