@@ -35,6 +35,14 @@ def residual_summaries(e: np.ndarray, diam: float, sample_keeps=(0.7,)) -> dict:
     return out
 
 
+def margin(D: np.ndarray, labels: np.ndarray) -> float:
+    """Smallest different-class distance over the largest same-class one (above 1: one
+    threshold separates every pair of a symmetric distance matrix ``D``)."""
+    same = labels[:, None] == labels[None, :]
+    off = ~np.eye(len(labels), dtype=bool)
+    return float(D[~same].min() / D[same & off].max())
+
+
 def write_results(path: str | None, payload: dict) -> None:
     """Write ``payload`` with today's date as the JSON results file ``path`` (nothing if None)."""
     if path:

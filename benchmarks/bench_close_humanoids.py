@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _common import margin
 
 from gromov.experiments import datasets
 from gromov.experiments.pairwise import gh_matrix
@@ -39,13 +40,6 @@ from gromov.experiments.synthetic import Synthetic
 from gromov.gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
 
 OPTIONS = {"raw": {"units": "raw"}, "normalized": {"units": "normalized"}}
-
-
-def margin(D: np.ndarray, labels: np.ndarray) -> float:
-    """Smallest different-class distance over the largest same-class one."""
-    same = labels[:, None] == labels[None, :]
-    off = ~np.eye(len(labels), dtype=bool)
-    return float(D[~same].min() / D[same & off].max())
 
 
 def main(argv=None):

@@ -37,7 +37,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from _common import add_data_argument, write_results
+from _common import add_data_argument, margin, write_results
 
 from gromov.experiments import datasets
 from gromov.experiments.pairwise import _one_thread_per_worker, prepare
@@ -51,13 +51,6 @@ HELDOUT = {"wolf": 2, "horse": 4, "centaur": 5, "michael": 6}
 RESIDUALS = ("difference", "log")
 _SHAPES: list = []
 _N = 0
-
-
-def margin(D: np.ndarray, labels: np.ndarray) -> float:
-    """Smallest different-class distance over the largest same-class one."""
-    same = labels[:, None] == labels[None, :]
-    off = ~np.eye(len(labels), dtype=bool)
-    return float(D[~same].min() / D[same & off].max())
 
 
 def _keep_working(s) -> None:

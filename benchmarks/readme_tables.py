@@ -65,6 +65,10 @@ def table(r: dict) -> str:
     for exp, name in EXPERIMENTS:
         if exp in rec:
             row(f"EER by the GH estimate, {name}", [_pct(rec[exp][m]["eer_gh"]) for m in METRICS])
+    for exp, name in EXPERIMENTS:   # a set-level normalisation: never beside the paper's numbers
+        if exp in rec and "eer_local" in rec[exp]["diffusion"]:
+            k = rec[exp]["diffusion"]["local_scaling_k"]
+            row(f"EER after local scaling (k = {k}), {name}", [_pct(rec[exp][m]["eer_local"]) for m in METRICS])
     nn = [" / ".join(_pct(rec[e][m]["nn_accuracy"]) for e, _ in EXPERIMENTS if e in rec)
           for m in METRICS]
     row("nearest-neighbour accuracy, Exp. 1 / Exp. 2", nn)

@@ -45,6 +45,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from _common import margin
 
 from gromov.experiments import datasets
 from gromov.experiments.pairwise import _one_thread_per_worker, prepare
@@ -70,15 +71,6 @@ def statistics(e: np.ndarray) -> dict:
     out.update({f"trim{round(100 * k)}": trimmed_rms(r, k) for k in KEEPS})
     out.update({f"strim{round(100 * k)}": sample_trimmed_rms(e, k) for k in SAMPLE_KEEPS})
     return out
-
-
-
-def margin(D: np.ndarray, labels: np.ndarray) -> float:
-    """Smallest different-class distance over the largest same-class distance."""
-    iu = np.triu_indices(len(D), 1)
-    same = (labels[:, None] == labels[None, :])[iu]
-    d = D[iu]
-    return float(d[~same].min() / d[same].max())
 
 
 def _pair(ij):

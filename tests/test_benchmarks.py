@@ -1,6 +1,7 @@
 """The diagnostic scripts under benchmarks/ compute what they say (no timings here)."""
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,10 @@ BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 def _module(name):
+    """A benchmark script as a module, with benchmarks/ on the path as when it is run
+    (``python benchmarks/NAME.py`` finds ``_common`` beside it)."""
+    if str(BENCH) not in sys.path:
+        sys.path.insert(0, str(BENCH))
     spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -89,12 +94,32 @@ def test_recognition_statistics_summarise_the_off_diagonal_residuals():
     assert s["strim90"] == pytest.approx(0.1) and s["strim60"] == pytest.approx(0.1)
 
 
-def test_recognition_statistics_margin():
-    rs = _module("recognition_statistics")
+def test_margin_of_the_rankings():
+    """The margin (benchmarks/_common.py, used by every ranking probe) is the smallest
+    different-class distance over the largest same-class one."""
+    common = _module("_common")
     D, lab = _by_class(["a", "a", "b", "b"], 1.0, 3.0)
-    assert rs.margin(D, lab) == 3.0
+    assert common.margin(D, lab) == 3.0
     D[0, 2] = D[2, 0] = 0.5            # one different-class pair closer than the classes
-    assert rs.margin(D, lab) == 0.5
+    assert common.margin(D, lab) == 0.5
+    for name in ("recognition_statistics", "bench_close_humanoids", "bench_rank_residual",
+                 "probe_local_scaling"):
+        assert _module(name).margin(D, lab) == 0.5
+
+
+def test_probe_local_scaling_readings():
+    """A shape whose distances to every other shape are inflated breaks one threshold;
+    local scaling restores it, and k is capped at n - 1."""
+    pl = _module("probe_local_scaling")
+    pos = np.array([0.0, 0.1, 0.2, 0.3, 0.4, 2.0, 2.1, 2.2, 2.3, 2.4])
+    lab = np.repeat(["a", "b"], 5)
+    D = np.abs(pos[:, None] - pos[None, :])
+    D[0, :] *= 4.0
+    D[:, 0] *= 4.0
+    row = pl.readings(D, lab, [2, 50])
+    assert row["as is"]["eer"] > 0 and row["as is"]["margin"] <= 1   # a tie at 1.6
+    assert row["k=2"]["eer"] == 0.0 and row["k=2"]["margin"] > 1
+    assert row["k=50"] == pl.readings(D, lab, [9])["k=9"]
 
 
 def test_weld_contact_pinch_merges_and_keeps_input_ids():
@@ -113,15 +138,6 @@ def test_weld_contact_pinch_merges_and_keeps_input_ids():
     assert np.count_nonzero(w.faces == iu) == np.count_nonzero(m.faces == u) + np.count_nonzero(m.faces == v)
     # one vertex fewer, same edges and faces: the Euler characteristic drops by one
     assert w.euler_characteristic == m.euler_characteristic - 1
-
-
-def test_close_humanoids_margin():
-    """The margin is the smallest different-class distance over the largest same-class one."""
-    ch = _module("bench_close_humanoids")
-    D, lab = _by_class(["a", "a", "b", "b"], 1.0, 3.0)
-    assert ch.margin(D, lab) == 3.0
-    D[0, 2] = D[2, 0] = 0.5     # one pair closer than the classes' own: below 1
-    assert ch.margin(D, lab) == 0.5
 
 
 def test_readme_tables_are_the_committed_results():
