@@ -283,10 +283,13 @@ def local_scaling(distances, k: int = LOCAL_SCALING_K) -> np.ndarray:
         \\sigma_i = \\text{the } k\\text{-th smallest of } \\{D_{il} : l \\ne i\\},
 
     the local scaling of Zelnik-Manor & Perona, "Self-tuning spectral clustering", NIPS 17
-    (2004), §2 (their affinity is ``exp(-D'^2)``, a decreasing function of ``D'``). A shape
-    whose distances to *every* other shape are inflated -- a welded shape, whose weld moves
-    whole rows of its diffusion distances (docs/notebook.md, session 11) -- is brought back to
-    the scale of its neighbours, so one global threshold serves noisy and clean shapes alike.
+    (2004), §2 (their affinity is ``exp(-D'^2)``, a decreasing function of ``D'``). Each
+    distance is measured in the units of the two shapes' neighbourhoods: a shape with
+    topological noise, which lies farther from its own class than the clean shapes do (welds:
+    1.26-1.35 times, in the rankings of ``gromov reproduce``; docs/notebook.md, session 20),
+    gets a larger scale, so one global threshold serves noisy and clean shapes alike. A row
+    inflated ``c`` times comes out inflated ``sqrt(c)`` times where the other shapes' scales
+    do not involve it.
 
     Unlike ``D``, ``D'_{ij}`` depends on the other shapes of the set (it is transductive; no
     labels are used): an equal error rate of ``D'`` is a property of the set, not of the pair

@@ -636,9 +636,9 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
                          "each distance divided by the geometric mean of the two shapes' "
                          "distances to their k-th nearest shape in the set (Zelnik-Manor &amp; "
                          "Perona, NIPS 2004). It uses the whole set, not the pair alone, so it "
-                         "is not the paper's measure and is not compared with it; a weld, which "
-                         "moves a shape's distances to every other shape, is what it "
-                         "compensates (k chosen on the validation sets).</p>")
+                         "is not the paper's measure and is not compared with it. A shape with "
+                         "topological noise lies farther from its own class than clean shapes "
+                         "do, and gets a larger scale (k chosen on the validation sets).</p>")
         keep = [i for i, on in enumerate((True,) * 7 + (bool(other), bool(local))) if on]
         rows = [tuple(row[i] for i in keep) for row in rows]
         parts.append(_table(head + ((other,) if other else ()) + ((local,) if local else ()), rows))
