@@ -325,6 +325,20 @@ def test_cli_neighbours_of_point_clouds(tmp_path):
     res = subprocess.run(base + ["--metric", "diffusion", "--kernel", "connectivity", "--neighbors", "5"],
                          capture_output=True, text=True)
     assert res.returncode == 2 and "--neighbors applies to point clouds" in res.stderr
+    # meshes alone would ignore it: refused, in every command that takes it, before any metric
+    mesh, other = tmp_path / "t.off", tmp_path / "u.ply"
+    gromov.save(torus(12, 6), mesh)
+    gromov.save(torus(14, 7), other)
+    for argv in (["match", str(mesh), str(other)], ["pairwise", str(mesh), str(other)],
+                 ["distances", str(mesh), "--out", str(tmp_path / "never.npz")]):
+        res = subprocess.run([sys.executable, "-m", "gromov", *argv, "--samples", "10", "--neighbors", "8"],
+                             capture_output=True, text=True)
+        assert res.returncode == 2 and "every input here is a mesh" in res.stderr, argv
+    assert not (tmp_path / "never.npz").exists()
+    # a mesh beside a cloud: the cloud uses it
+    res = subprocess.run([sys.executable, "-m", "gromov", "match", str(mesh), str(f), "--samples", "10",
+                          "--neighbors", "8", "--json"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
 
 
 def test_coincident_points_are_neighbours_at_distance_zero_in_the_knn_graph():

@@ -192,6 +192,16 @@ def _load(path: str):
     return load(path)
 
 
+def _check_neighbors(args, shapes) -> None:
+    """``--neighbors`` shapes a point cloud's graph or Laplacian: refused when every input is a
+    mesh, whose metric is built on its faces and would ignore it."""
+    from .mesh import Mesh
+
+    if getattr(args, "neighbors", None) is not None and all(isinstance(s, Mesh) for s in shapes):
+        raise _UserError("--neighbors applies to point clouds; every input here is a mesh, whose "
+                         "metric is built on its faces")
+
+
 def _progress(total: int, desc: str, quiet: bool):
     from tqdm import tqdm
 
@@ -233,6 +243,7 @@ def cmd_distances(args) -> int:
     from .sampling import farthest_point_sampling
 
     shape = _load(args.mesh)
+    _check_neighbors(args, [shape])
     t0 = time.perf_counter()
     work = working_shape(shape, args.resolution)   # a point cloud's: farthest points in space
     target, to_input = work.mesh, work.to_input_ids
@@ -282,10 +293,10 @@ def cmd_match(args) -> int:
     from .metrics.diffusion import correspondence_options
 
     options = correspondence_options(args.metric, _metric_options(args))
-    shapes = []
-    for path in (args.x, args.y):
-        shapes.append(ShapeMetric(_load(path), args.metric, resolution=args.resolution,
-                                  metric_options=options))
+    inputs = [_load(path) for path in (args.x, args.y)]
+    _check_neighbors(args, inputs)
+    shapes = [ShapeMetric(shape, args.metric, resolution=args.resolution, metric_options=options)
+              for shape in inputs]
     for path, s in zip((args.x, args.y), shapes):
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
@@ -434,6 +445,7 @@ def cmd_pairwise(args) -> int:
             raise _UserError(f"--samples {args.samples} is more than the {work} vertices of the "
                              f"working set of {path}")
         shapes.append(shape)
+    _check_neighbors(args, shapes)
     options = _metric_options(args)
     t = time.perf_counter()
     r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
