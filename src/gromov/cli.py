@@ -127,8 +127,9 @@ def _rank_tau_scale(text: str) -> float | None:
 
 
 def _add_rank_args(p: argparse.ArgumentParser) -> None:
-    """``--rank-tau-scale`` and ``--rank-residual`` (how recognition ranks), for ``pairwise``
-    and ``reproduce``."""
+    """``--rank-tau-scale``, ``--rank-residual`` (how recognition ranks) and ``--local-scaling``
+    (the locally scaled EER beside it), for ``pairwise`` and ``reproduce``."""
+    from .experiments.recognition import LOCAL_SCALING_K
     from .gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
 
     p.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
@@ -139,8 +140,6 @@ def _add_rank_args(p: argparse.ArgumentParser) -> None:
                    help=f"the trimmed ranking summarises the log ratios of corresponding distances "
                         f"(log: a multiplicative distortion) or their differences over the larger "
                         f"diameter (difference: before session 17; default {RANK_RESIDUAL})")
-    from .experiments.recognition import LOCAL_SCALING_K
-
     p.add_argument("--local-scaling", type=_positive_int, default=LOCAL_SCALING_K, metavar="K",
                    help=f"also report the EER after local scaling: each distance over the geometric "
                         f"mean of the two shapes' distances to their K-th nearest shape (a set-level "
