@@ -9,6 +9,7 @@ import pytest
 
 import gromov
 from gromov.cli import main
+from gromov.errors import GromovWarning
 from gromov.metrics import GeodesicSolver, metric_solver
 from gromov.shapes import icosphere, torus
 
@@ -337,18 +338,21 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     npz, csv_path, png = tmp_path / "d.npz", tmp_path / "d.csv", tmp_path / "mds.png"
     base = ["pairwise", *map(str, files), "--metric", "geodesic", "--samples", "20", "--jobs", "1"]
     argv = [*base, "--labels-from-names"]
-    assert main([*argv, "--json", "--out", str(npz), "--mds", str(png)]) == 0
+    # classes of 2: k = 4 is capped at n - 1 = 3, which takes scales from the other class: said
+    with pytest.warns(GromovWarning, match=r"not below the smallest class \(2 shapes\)"):
+        assert main([*argv, "--json", "--out", str(npz), "--mds", str(png)]) == 0
     res = json.loads(capsys.readouterr().out)
     names = [str(f) for f in files]
     assert res["files"] == names and res["labels"] == ["sheet", "long", "sheet", "long"]
     assert res["nearest"] == [names[2], names[3], names[0], names[1]]
     assert res["eer"] == 0.0 and res["eer_gh"] == 0.0 and res["nn_accuracy"] == 1.0
     assert res["local_scaling_k"] == 3 and res["eer_local"] == 0.0     # k = 4 capped at n - 1
+    assert res["errors_at_eer_local"]["false_accept"] == {} and res["errors_at_eer_local"]["false_reject"] == {}
     rel = np.array(res["relative_distance"])
     trim = np.array(res["relative_trimmed_distance"])
     assert np.array_equal(rel, rel.T) and np.all(np.diag(rel) == 0)
     assert res["rank_residual"] == "log" and np.array_equal(trim, trim.T)   # log distance ratios
-    assert main([*argv, "--json", "--rank-residual", "difference"]) == 0     # differences / diameter
+    assert main([*argv, "--json", "--rank-residual", "difference", "--local-scaling", "1"]) == 0   # differences
     diff = json.loads(capsys.readouterr().out)
     assert diff["rank_residual"] == "difference" and diff["relative_distance"] == res["relative_distance"]
     assert np.all(np.array(diff["relative_trimmed_distance"]) <= rel + 1e-15)   # trimmed <= RMS
@@ -363,11 +367,15 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     assert str(z["metric"]) == "geodesic" and int(z["n_samples"]) == 20
     assert str(z["ranked_by"]) == "trimmed" and list(z["nearest"]) == res["nearest"]
     assert float(z["eer"]) == 0.0 and float(z["eer_local"]) == res["eer_local"]
+    assert int(z["local_scaling_k"]) == res["local_scaling_k"] == 3
+    assert main([*base, "--local-scaling", "2"]) == 2          # no labels: nothing to scale an EER of
+    assert "--local-scaling sets the neighbour" in capsys.readouterr().err
     assert png.stat().st_size > 1000
     # the same run (deterministic) as CSV, and the summary for people
-    assert main([*argv, "--out", str(csv_path)]) == 0
+    assert main([*argv, "--out", str(csv_path), "--local-scaling", "1"]) == 0
     out = capsys.readouterr().out
     assert "4 shapes, 6 pairs, geodesic metric" in out and "equal error rate 0.00%" in out
+    assert "locally scaled, k = 1: 0.00%" in out
     assert "another class" not in out
     assert "false acceptances (pairs of classes): none; false rejections (within a class): none" in out
     assert res["errors_at_eer"]["false_accept"] == {} and res["errors_at_eer"]["far"] == 0.0

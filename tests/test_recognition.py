@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from gromov.experiments import recognition
-from gromov.experiments.recognition import equal_error_rate, local_scaling, mds_map, plot_mds, plot_roc, roc
+from gromov.errors import GromovWarning
+from gromov.experiments.recognition import (equal_error_rate, local_roc, local_scaling, mds_map, plot_mds,
+                                             plot_roc, roc)
 
 
 def _matrix(n, entries):
@@ -261,6 +263,26 @@ def test_local_scaling_of_coincident_shapes_and_errors():
         local_scaling(-HAND, 1)
     with pytest.raises(ValueError, match="symmetric"):
         local_scaling(np.triu(HAND), 1)
+
+
+def test_local_roc_caps_k_and_warns_when_it_reaches_beyond_the_smallest_class():
+    # HAND: classes of 3 and 2 shapes
+    curve, scaled, k = local_roc(HAND, HAND_LABELS, 1)
+    assert k == 1 and np.array_equal(scaled, local_scaling(HAND, 1))
+    assert curve.eer == roc(local_scaling(HAND, 1), HAND_LABELS).eer
+    with pytest.warns(GromovWarning, match=r"k = 2 is not below the smallest class \(2 shapes\)"):
+        local_roc(HAND, HAND_LABELS, 2)
+    with pytest.warns(GromovWarning, match="k = 4"):        # 9 is capped at n - 1 = 4
+        _, scaled, k = local_roc(HAND, HAND_LABELS, 9)
+    assert k == 4 and np.array_equal(scaled, local_scaling(HAND, 4))
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        local_roc(HAND, HAND_LABELS, 9, warn=False)
+    for bad in (0, True, 1.5):
+        with pytest.raises(ValueError, match="positive integer"):
+            local_roc(HAND, HAND_LABELS, bad)
 
 
 def test_mds_recovers_a_planar_configuration():

@@ -45,6 +45,7 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
             # the locally scaled ranking's EER beside it (k capped at n - 1), recomputable
             assert rec[m]["local_scaling_k"] == min(r["params"]["local_scaling"], n - 1)
             local = roc(local_scaling(t, rec[m]["local_scaling_k"]), rec["labels"])
+            assert rec["smallest_class"] == min(rec["labels"].count(c) for c in rec["classes"])
             assert rec[m]["eer_local"] == pytest.approx(local.eer, abs=1e-9)
             assert rec[m]["errors_at_eer_local"]["threshold"] == pytest.approx(local.eer_threshold, rel=1e-4)
     assert r["params"]["rank_tau_scale"] == 0.5 and r["params"]["rank_residual"] == "log"

@@ -140,11 +140,12 @@ def _add_rank_args(p: argparse.ArgumentParser) -> None:
                    help=f"the trimmed ranking summarises the log ratios of corresponding distances "
                         f"(log: a multiplicative distortion) or their differences over the larger "
                         f"diameter (difference: before session 17; default {RANK_RESIDUAL})")
-    p.add_argument("--local-scaling", type=_positive_int, default=LOCAL_SCALING_K, metavar="K",
-                   help=f"also report the EER after local scaling: each distance over the geometric "
-                        f"mean of the two shapes' distances to their K-th nearest shape (a set-level "
-                        f"normalisation, Zelnik-Manor & Perona 2004; capped at the number of shapes "
-                        f"less one; default {LOCAL_SCALING_K})")
+    p.add_argument("--local-scaling", type=_positive_int, default=None, metavar="K",
+                   help=f"the EER is also reported after local scaling: each distance over the "
+                        f"geometric mean of the two shapes' distances to their K-th nearest shape (a "
+                        f"set-level normalisation, Zelnik-Manor & Perona 2004; keep K below the "
+                        f"smallest class; capped at the number of shapes less one; default "
+                        f"{LOCAL_SCALING_K}; pairwise: needs labels)")
 
 
 def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
@@ -408,7 +409,7 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
 
 def cmd_pairwise(args) -> int:
     from .experiments.pairwise import available_cpus, gh_matrix
-    from .experiments.recognition import errors_at, local_scaling, mds_map, roc
+    from .experiments.recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, roc
 
     n = len(args.files)
     if n < 2:
@@ -420,6 +421,10 @@ def cmd_pairwise(args) -> int:
         dup = sorted({f for f, r in zip(args.files, real) if real.count(r) > 1})
         raise _UserError(f"a file is given twice: {', '.join(dup)}")
     labels = _pairwise_labels(args, n)
+    if args.local_scaling is not None and labels is None:
+        raise _UserError("--local-scaling sets the neighbour of the locally scaled EER: give "
+                         "--labels or --labels-from-names")
+    k_local = LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling
     outs = [Path(f) for f in (args.out, args.mds) if f]
     if args.out:
         if not args.out.endswith((".npz", ".csv")):
@@ -469,13 +474,15 @@ def cmd_pairwise(args) -> int:
         result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
         same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
         result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
-                      local_scaling_k=min(args.local_scaling, n - 1))
+                      local_scaling_k=None, errors_at_eer_local=None)
         if same.any() and not same.all():   # else all one class, or every shape its own: no EER
             curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
+            local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
             result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
                           eer_trimmed=curves["trimmed"].eer,
                           errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold),
-                          eer_local=roc(local_scaling(D, result["local_scaling_k"]), lab).eer)
+                          eer_local=local.eer, local_scaling_k=k_used,
+                          errors_at_eer_local=errors_at(scaled, lab, local.eer_threshold))
     if args.out:
         out = Path(args.out)
         if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
@@ -489,6 +496,7 @@ def cmd_pairwise(args) -> int:
                                 ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
                                 eer=nan if result.get("eer") is None else result["eer"],
                                 eer_local=nan if result.get("eer_local") is None else result["eer_local"],
+                                local_scaling_k=result.get("local_scaling_k") or 0,
                                 metric=args.metric, options=json.dumps(options),
                                 rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
                                 rank_residual=r.rank_residual,
@@ -639,8 +647,9 @@ def cmd_reproduce(args) -> int:
     import os
 
     from .experiments.datasets import data_root
+    from .experiments.recognition import LOCAL_SCALING_K
     from .experiments.report import PAPER, PAPER_CLASSES, other_classes
-    from .experiments.reproduce import RESULT_KEYS, reproduce
+    from .experiments.reproduce import METRICS, RESULT_KEYS, reproduce
 
     data = None
     if args.data is not None:
@@ -651,7 +660,8 @@ def cmd_reproduce(args) -> int:
                   command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
                   classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by,
                   rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual,
-                  pose_stretch=args.pose_stretch, local_scaling=args.local_scaling)
+                  pose_stretch=args.pose_stretch,
+                  local_scaling=LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -676,8 +686,9 @@ def cmd_reproduce(args) -> int:
         if params.get("rank_tau_scale") is not None:
             rank += (f", for diffusion measured at {params['rank_tau_scale']:g} x the diffusion time "
                      f"(--rank-tau-scale)")
+    ks = sorted({r["recognition"][e][m]["local_scaling_k"] for e in r["recognition"] for m in METRICS})
     print(f"  EERs rank pairs by {rank}; in brackets the other's EER, and the EER after local "
-          f"scaling (k = {params.get('local_scaling')}, --local-scaling)")
+          f"scaling (k = {', '.join(map(str, ks))}, --local-scaling)")
     print(f"  {'result':<34}{'ours':>9}{'paper (TOSCA)':>15}")
     for key in RESULT_KEYS:
         v = r[key]
