@@ -601,7 +601,8 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
                    "correspondence: the RMS distortion of its best-fitting 80% of sample pairs, "
                    "which sets aside the pairs a local change of topology altered (our choice, "
                    "not the paper's: made on the synthetic set and on TOSCA classes the paper did "
-                   "not use). The last column ranks by the GH estimate itself (½ RMS distortion)")
+                   "not use). The column “EER, GH estimate” ranks by the GH estimate itself (½ RMS "
+                   "distortion)")
             if _get(results, "params", "rank_residual") == "log":
                 how = how.replace("the RMS distortion of its best-fitting 80% of sample pairs",
                                   "the RMS of the log ratios of corresponding distances over its "
@@ -614,7 +615,7 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
             other = "EER, GH estimate"
         elif ranked == {"gh"}:
             how = ("ranking the pairs by the Gromov-Hausdorff estimate (½ RMS distortion). The "
-                   "last column ranks by the trimmed distortion (RMS of the best-fitting 80% of "
+                   "column “EER, trimmed” ranks by the trimmed distortion (RMS of the best-fitting 80% of "
                    "sample pairs)")
             other = "EER, trimmed"
         else:
