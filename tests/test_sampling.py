@@ -61,3 +61,38 @@ def test_errors():
         farthest_point_sampling(np.zeros((3, 4)), 2)
     with pytest.raises(ValueError, match="first must be"):
         farthest_point_sampling(s, 2, first=99)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_euclidean_fast_path_is_the_general_loop(monkeypatch, threads):
+    """Point clouds sample in the Euclidean metric by a fused numba pass (in threads from
+    ``_PARALLEL_MIN`` points): the same samples, radii, distances and cells, to the bit, as
+    the general loop over the solver's rows -- repeated points, ties and a radius included,
+    whatever the number of threads."""
+    import numba
+
+    import gromov.sampling as sampling
+    from gromov.mesh import PointCloud
+    from gromov.metrics import EuclideanSolver
+
+    class Rows(EuclideanSolver):   # not exactly EuclideanSolver: the general loop
+        pass
+
+    if threads > numba.config.NUMBA_NUM_THREADS:
+        pytest.skip("one numba thread on this machine")
+    monkeypatch.setattr(sampling, "_PARALLEL_MIN", 100)
+    numba.set_num_threads(threads)
+    try:
+        pts = np.random.default_rng(4).normal(size=(3000, 3))
+        pts[10:20] = pts[0]                    # ten repeats of one point
+        pts[100:110] = np.round(pts[100:110])  # points on a grid: tied distances
+        cloud = PointCloud(pts)
+        for kwargs in ({"n_samples": 500}, {"radius": 0.3}, {"n_samples": 3000}):
+            fast = farthest_point_sampling(EuclideanSolver(cloud), first=7, **kwargs)
+            slow = farthest_point_sampling(Rows(cloud), first=7, **kwargs)
+            for f in ("indices", "radii", "distance", "nearest"):
+                np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f"{f} {kwargs}")
+            assert fast.radius == slow.radius
+        assert len(fast) == len(np.unique(pts, axis=0))   # every place once: repeats are covered at 0
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)

@@ -11,8 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import get_num_threads, njit, prange
 
-from .metrics import MetricSolver
+from .metrics import EuclideanSolver, MetricSolver
 
 __all__ = ["Samples", "farthest_point_sampling"]
 
@@ -93,21 +94,77 @@ def farthest_point_sampling(metric, n_samples: int | None = None, *, radius: flo
     elif not 0 <= int(first) < n:
         raise ValueError(f"first must be a vertex index in [0, {n}), got {first}")
 
-    indices = [int(first)]
-    dist = np.array(row(first), dtype=float)
-    dist[first] = 0.0
+    dist = np.full(n, np.inf)          # to the nearest sample so far
     nearest = np.zeros(n, dtype=np.int64)
-    radii = [float(dist.max())]
+    if type(metric) is EuclideanSolver:   # point clouds: one fused pass per sample, in threads
+        V = np.ascontiguousarray(metric.shape.vertices, dtype=np.float64)
+        threads = get_num_threads() if n >= _PARALLEL_MIN else 1
+
+        def add(i: int, k: int) -> tuple[float, int]:
+            if threads > 1:
+                best, j = _add_parallel(V, dist, nearest, i, k, threads)
+            else:   # also in forked workers (one thread), which must not enter the threading layer
+                best, j = _add_range(V, dist, nearest, 0, n, i, k)
+            return float(best), int(j)
+    else:
+        def add(i: int, k: int) -> tuple[float, int]:
+            """Sample ``i`` as the ``k``-th: update the distances and cells; the farthest vertex."""
+            r = np.asarray(row(i), dtype=float)
+            closer = r < dist
+            nearest[closer] = k
+            dist[closer] = r[closer]
+            dist[i] = 0.0
+            nearest[i] = k
+            j = int(np.argmax(dist))
+            return float(dist[j]), j
+
+    indices = [int(first)]
+    best, nxt = add(int(first), 0)
+    radii = [best]
     while len(indices) < limit and not (radius is not None and radii[-1] <= radius):
-        nxt = int(np.argmax(dist))
         if dist[nxt] <= 0.0:  # every vertex is a sample already (duplicates)
             break
-        r = np.asarray(row(nxt), dtype=float)
-        closer = r < dist
-        nearest[closer] = len(indices)
-        dist = np.where(closer, r, dist)
-        dist[nxt] = 0.0
-        nearest[nxt] = len(indices)
         indices.append(nxt)
-        radii.append(float(dist.max()))
+        best, nxt = add(nxt, len(indices) - 1)
+        radii.append(best)
     return Samples(np.asarray(indices, dtype=np.int64), radii[-1], np.asarray(radii), dist, nearest)
+
+
+#: Points from which the Euclidean sampling's pass runs in numba threads.
+_PARALLEL_MIN = 50_000
+
+
+@njit(cache=True)
+def _add_range(V, dist, nearest, lo, hi, i, k):
+    """Point ``i`` as the ``k``-th sample, for the points ``lo:hi``: straight-line distance,
+    cells, and the farthest point (the first of equals)."""
+    x, y, z = V[i, 0], V[i, 1], V[i, 2]
+    best, arg = -1.0, lo
+    for p in range(lo, hi):
+        dx, dy, dz = V[p, 0] - x, V[p, 1] - y, V[p, 2] - z
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)   # as scipy's cdist: the same values
+        if d < dist[p]:
+            dist[p] = d
+            nearest[p] = k
+        if p == i:
+            dist[p] = 0.0
+            nearest[p] = k
+        if dist[p] > best:
+            best, arg = dist[p], p
+    return best, arg
+
+
+@njit(cache=True, parallel=True)
+def _add_parallel(V, dist, nearest, i, k, T):
+    """:func:`_add_range` over all points in ``T`` chunks, one per thread; the chunks'
+    farthest points combined in order, so the result does not depend on ``T``."""
+    n = V.shape[0]
+    bests = np.empty(T)
+    args = np.empty(T, dtype=np.int64)
+    for t in prange(T):
+        bests[t], args[t] = _add_range(V, dist, nearest, t * n // T, (t + 1) * n // T, i, k)
+    best, arg = -1.0, 0
+    for t in range(T):
+        if bests[t] > best:
+            best, arg = bests[t], args[t]
+    return best, arg
