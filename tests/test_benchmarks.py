@@ -155,3 +155,13 @@ def test_readme_tables_are_the_committed_results():
         cells = [c.strip() for c in eer_row.strip("|").split("|")]
         assert cells[1] == rt._pct(r["eer.weld.geodesic"]) and cells[2] == rt._pct(r["eer.weld.diffusion"])
     assert rt._pct(0.0675) == "6.75%" and rt._pct(0.2232) == "22.3%" and rt._pct(0.0) == "0.0%"
+
+
+def test_cloud_sampling_benchmark_compares_like_with_like():
+    """The benchmark's general loop is the same sampling (identical samples and distances) and
+    the anchor's covering radius is measured on the same cloud."""
+    cs = _module("bench_cloud_sampling")
+    r = cs.run(3000, 60)
+    assert r["identical_to_general_loop"] and r["radius_ours"] > 0
+    if "radius_fpsample_vanilla" in r:   # fpsample (bench extra): a covering radius near ours
+        assert abs(r["radius_fpsample_vanilla"] / r["radius_ours"] - 1) < 0.2
