@@ -63,12 +63,12 @@ def test_errors():
         farthest_point_sampling(s, 2, first=99)
 
 
-@pytest.mark.parametrize("threads", [1, 2])
-def test_euclidean_fast_path_is_the_general_loop(monkeypatch, threads):
-    """Point clouds sample in the Euclidean metric by a fused numba pass (in threads from
-    ``_PARALLEL_MIN`` points): the same samples, radii, distances and cells, to the bit, as
-    the general loop over the solver's rows -- repeated points, ties and a radius included,
-    whatever the number of threads."""
+@pytest.mark.parametrize("threads, bucket", [(1, 256), (2, 256), (1, 7), (2, 7)])
+def test_euclidean_fast_path_is_the_general_loop(monkeypatch, threads, bucket):
+    """Point clouds sample in the Euclidean metric with buckets of points, most of which each
+    new sample passes over (in threads from ``_PARALLEL_MIN`` points): the same samples, radii,
+    distances and cells, to the bit, as the general loop over the solver's rows -- repeated
+    points, ties and a radius included, whatever the bucket size and number of threads."""
     import numba
 
     import gromov.sampling as sampling
@@ -81,6 +81,7 @@ def test_euclidean_fast_path_is_the_general_loop(monkeypatch, threads):
     if threads > numba.config.NUMBA_NUM_THREADS:
         pytest.skip("one numba thread on this machine")
     monkeypatch.setattr(sampling, "_PARALLEL_MIN", 100)
+    monkeypatch.setattr(sampling, "_BUCKET", bucket)
     numba.set_num_threads(threads)
     try:
         pts = np.random.default_rng(4).normal(size=(3000, 3))
