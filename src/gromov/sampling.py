@@ -130,8 +130,9 @@ class _EuclideanBuckets:
     bounding boxes. Adding a sample ``q`` can lower a point's distance only where
     ``|p - q| < dist[p]``; the distance from ``q`` to a bucket's box bounds ``|p - q|`` from
     below for every point in it, so a bucket whose box is at least as far as its largest
-    ``dist`` is passed over whole (the bucket pruning of QuickFPS: Han et al., IEEE TCAD 42(11),
-    2023, there with KD-tree buckets). Every other point is updated exactly as the general loop
+    ``dist`` is passed over whole (the bucket pruning of Han et al., "QuickFPS: architecture and
+    algorithm co-design for farthest point sampling in large-scale point clouds", IEEE TCAD 2023,
+    there with KD-tree buckets). Every other point is updated exactly as the general loop
     updates it, and the farthest point is the first of equals by index, so samples, radii,
     distances and cells are the general loop's, to the bit. Buckets are visited in numba threads
     from ``_PARALLEL_MIN`` points (each writes only its own points).
