@@ -42,6 +42,16 @@ from gromov.gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
 OPTIONS = {"raw": {"units": "raw"}, "normalized": {"units": "normalized"}}
 
 
+def close_people(blend: float, stretch: float = 0.1, deformations: int = 4) -> list:
+    """The synthetic david and victoria (victoria's body the fraction ``blend`` of the way from
+    david's), reference + ``deformations`` poses each, clean and welded, as ``gromov
+    reproduce`` builds Experiment 1's shapes."""
+    coll = Synthetic(victoria_blend=blend, pose_stretch=stretch)
+    shapes = _Shapes(coll, None)
+    entries = datasets.experiment1(coll, {"david": deformations, "victoria": deformations})
+    return [shapes.entry(e) for e in entries]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--blends", default="1,0.5,0.25")
@@ -70,10 +80,7 @@ def main(argv=None):
            "options": options, "blends": {}}
     t0 = time.perf_counter()
     for blend in (float(b) for b in args.blends.split(",")):
-        coll = Synthetic(victoria_blend=blend, pose_stretch=args.stretch)
-        shapes = _Shapes(coll, None)
-        entries = datasets.experiment1(coll, {"david": args.deformations, "victoria": args.deformations})
-        items = [shapes.entry(e) for e in entries]
+        items = close_people(blend, args.stretch, args.deformations)
         labels = np.array([s.cls for s in items])
         mats = {}
         for name, opts in options.items():

@@ -37,7 +37,7 @@ import time
 import numpy as np
 from _common import HERE, margin, write_results
 
-from gromov.experiments.recognition import equal_error_rate, local_roc
+from gromov.experiments.recognition import equal_error_rate, local_roc, smallest_class
 
 SETS = {"synthetic": "synthetic", "stretched": "synthetic-stretch", "heldout": "reproduce-heldout"}
 PAPER = "reproduce-tosca"
@@ -54,17 +54,14 @@ def from_results(folder: str, metrics) -> dict:
 
 
 def close_people(blends=(1.0, 0.5), jobs: int = 2) -> dict:
-    """The close-people matrices (diffusion), as ``bench_close_humanoids.py`` builds them."""
-    from gromov.experiments import datasets
+    """The close-people matrices (diffusion), as ``bench_close_humanoids.py`` makes them."""
+    from bench_close_humanoids import close_people as items_of
+
     from gromov.experiments.pairwise import gh_matrix
-    from gromov.experiments.reproduce import _Shapes
-    from gromov.experiments.synthetic import Synthetic
 
     out = {}
     for blend in blends:
-        coll = Synthetic(victoria_blend=blend, pose_stretch=0.1)
-        shapes = _Shapes(coll, None)
-        items = [shapes.entry(e) for e in datasets.experiment1(coll, {"david": 4, "victoria": 4})]
+        items = items_of(blend)
         r = gh_matrix([s.mesh for s in items], "diffusion", n_samples=50, resolution=None,
                       metric_options={"units": "raw"}, jobs=jobs)
         out[f"close{blend:g}/weld/diffusion"] = (np.asarray(r.trimmed), np.array([s.cls for s in items]))
@@ -73,7 +70,7 @@ def close_people(blends=(1.0, 0.5), jobs: int = 2) -> dict:
 
 def readings(D: np.ndarray, labels: np.ndarray, ks) -> dict:
     row = {"as is": {"eer": equal_error_rate(D, labels), "margin": margin(D, labels)},
-           "smallest": int(np.unique(labels, return_counts=True)[1].min())}
+           "smallest": smallest_class(labels)}
     for k in ks:
         curve, Dk, _ = local_roc(D, labels, k, warn=False)
         row[f"k={k}"] = {"eer": curve.eer, "margin": margin(Dk, labels)}

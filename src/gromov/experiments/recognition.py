@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["ROC", "roc", "equal_error_rate", "errors_at", "local_scaling", "local_roc", "LOCAL_SCALING_K",
-           "mds_map", "plot_roc", "plot_mds"]
+           "smallest_class", "mds_map", "plot_roc", "plot_mds"]
 
 logger = logging.getLogger(__name__)
 
@@ -340,6 +340,11 @@ def local_scaling(distances, k: int = LOCAL_SCALING_K) -> np.ndarray:
     return out
 
 
+def smallest_class(labels) -> int:
+    """The number of shapes in the smallest class of ``labels``."""
+    return int(np.unique(np.asarray(labels), return_counts=True)[1].min())
+
+
 def local_roc(distances, labels, k: int = LOCAL_SCALING_K, *, warn: bool = True
               ) -> tuple[ROC, np.ndarray, int]:
     """ROC of the locally scaled distances (:func:`local_scaling`), ``k`` capped at ``n - 1``.
@@ -367,7 +372,7 @@ def local_roc(distances, labels, k: int = LOCAL_SCALING_K, *, warn: bool = True
         raise ValueError(f"k must be a positive integer, got {k!r}")
     used = min(int(k), n - 1)
     if warn:
-        smallest = int(np.unique(lab, return_counts=True)[1].min())
+        smallest = smallest_class(lab)
         if used >= smallest:
             import warnings
 

@@ -56,7 +56,8 @@ from ..metrics.diffusion import correspondence_options
 from ..resolution import WorkingMesh, simplify
 from . import datasets
 from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
-from .recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, plot_mds, plot_roc, roc
+from .recognition import (LOCAL_SCALING_K, errors_at, local_roc, mds_map, plot_mds, plot_roc, roc,
+                          smallest_class)
 
 __all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS", "RANK_BY"]
 
@@ -437,7 +438,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     keep = _correspondence_pairs(items)
     rec = {"entries": [s.label for s in items], "classes": list(dict.fromkeys(labels.tolist())),
            "labels": labels.tolist(), "perturbed": perturbed.tolist(),
-           "smallest_class": int(np.unique(labels, return_counts=True)[1].min()),
+           "smallest_class": smallest_class(labels),
            "shapes": {s.label: s.info for s in items}}
     curves = {}
     for metric in METRICS:
