@@ -332,6 +332,15 @@ class MatchResult:
         repaired mesh's faces. On a point cloud: face -1, NaN coordinates, and the image point.
     y_to_x_face, y_to_x_bary, y_to_x_vertex : ndarray
         The same for Y's samples on X.
+    x_to_y_dense_face, x_to_y_dense_bary, x_to_y_dense_vertex : ndarray (n_X,), (n_X, 3), (n_X,)
+        With ``match(..., dense=True)``: the image on Y's input mesh of *every* vertex of X's
+        input (entry i for file vertex i; :mod:`gromov.dense`), as for the samples. None
+        otherwise.
+    y_to_x_dense_face, y_to_x_dense_bary, y_to_x_dense_vertex : ndarray (n_Y,), (n_Y, 3), (n_Y,)
+        The same for every vertex of Y on X.
+    input_faces : (ndarray or None, ndarray or None)
+        With the dense maps: the faces of X's and Y's input meshes in file vertex ids (None
+        for a point cloud), which the dense face ids index; what :meth:`transfer` interpolates on.
     orientation : float
         Fraction of small sample triangles whose sense of rotation the correspondence keeps
         (:func:`gromov.orientation.orientation_agreement`, both directions averaged): about 1
@@ -384,6 +393,13 @@ class MatchResult:
     ranking_distance: float = float("nan")
     pair_distortion: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     history: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    x_to_y_dense_face: np.ndarray | None = field(repr=False, default=None)
+    x_to_y_dense_bary: np.ndarray | None = field(repr=False, default=None)
+    x_to_y_dense_vertex: np.ndarray | None = field(repr=False, default=None)
+    y_to_x_dense_face: np.ndarray | None = field(repr=False, default=None)
+    y_to_x_dense_bary: np.ndarray | None = field(repr=False, default=None)
+    y_to_x_dense_vertex: np.ndarray | None = field(repr=False, default=None)
+    input_faces: tuple = field(repr=False, default=(None, None))
 
     def to_dict(self) -> dict:
         """The JSON fields of ``gromov match --json``."""
@@ -413,13 +429,71 @@ class MatchResult:
         m = len(self.x_samples)
         return rows[:m], rows[m:]
 
+    @property
+    def has_dense(self) -> bool:
+        """Whether the dense maps were computed (``match(..., dense=True)``)."""
+        return self.x_to_y_dense_vertex is not None
+
     def arrays(self) -> dict:
-        """The arrays of ``gromov match --out``: the correspondences, and ``x_distortion``,
-        ``y_distortion`` (:attr:`sample_distortion`)."""
-        out = {k: getattr(self, k) for k in (
-            "x_samples", "x_to_y_face", "x_to_y_bary", "x_to_y_vertex",
-            "y_samples", "y_to_x_face", "y_to_x_bary", "y_to_x_vertex")}
+        """The arrays of ``gromov match --out``: the correspondences, ``x_distortion``,
+        ``y_distortion`` (:attr:`sample_distortion`), and the dense maps when computed."""
+        keys = ["x_samples", "x_to_y_face", "x_to_y_bary", "x_to_y_vertex",
+                "y_samples", "y_to_x_face", "y_to_x_bary", "y_to_x_vertex"]
+        if self.has_dense:
+            keys += [f"{d}_dense_{k}" for d in ("x_to_y", "y_to_x") for k in ("vertex", "face", "bary")]
+        out = {k: getattr(self, k) for k in keys}
         out["x_distortion"], out["y_distortion"] = self.sample_distortion
+        return out
+
+    def transfer(self, values, *, method: str = "nearest", direction: str = "x_to_y") -> np.ndarray:
+        r"""Carry a per-vertex function of X to Y (or of Y to X) through the dense map.
+
+        ``method="nearest"``: each vertex of the target takes the value at the vertex nearest
+        to its image, :math:`g(y) = f(v(T(y)))` -- for labels, segmentations and other values
+        that must not be mixed. ``"barycentric"``: the value interpolated at the image,
+        :math:`g(y) = \sum_c eta_c f(c)` over the corners of the image's face -- for smooth
+        functions. A map carries functions backwards: values on X reach Y through the map
+        from Y to X.
+
+        Parameters
+        ----------
+        values : array_like (n_X, ...) or (n_Y, ...)
+            One row per file vertex of the source of the function (X for ``"x_to_y"``).
+        method : {"nearest", "barycentric"}
+        direction : {"x_to_y", "y_to_x"}
+            Which way the function goes.
+
+        Returns
+        -------
+        ndarray (n_Y, ...) or (n_X, ...)
+            Rows of target vertices that loading dropped are NaN (0 for integer values).
+        """
+        if not self.has_dense:
+            raise ValueError("transfer needs the dense maps: match(..., dense=True)")
+        if direction not in ("x_to_y", "y_to_x"):
+            raise ValueError(f"direction must be 'x_to_y' or 'y_to_x', got {direction!r}")
+        if method not in ("nearest", "barycentric"):
+            raise ValueError(f"method must be 'nearest' or 'barycentric', got {method!r}")
+        back = "y_to_x" if direction == "x_to_y" else "x_to_y"  # the target's images on the source
+        vertex, face, bary = (getattr(self, f"{back}_dense_{k}") for k in ("vertex", "face", "bary"))
+        n_source = len(getattr(self, f"{direction}_dense_vertex"))
+        v = np.asarray(values)
+        if v.shape[:1] != (n_source,):
+            raise ValueError(f"values must have one row per vertex of the source shape ({n_source}), "
+                             f"got shape {v.shape}")
+        faces = self.input_faces[0 if direction == "x_to_y" else 1]
+        ok = vertex >= 0
+        if method == "barycentric" and faces is None:
+            raise ValueError("barycentric transfer needs faces on the shape the values live on "
+                             "(a point cloud has none): use method='nearest'")
+        if method == "nearest":
+            out = v[np.where(ok, vertex, 0)]
+        else:
+            corners = faces[np.where(face >= 0, face, 0)]
+            w = np.nan_to_num(bary).reshape(bary.shape + (1,) * (v.ndim - 1))
+            out = (v[corners] * w).sum(axis=1)
+        if not ok.all():
+            out[~ok] = np.nan if out.dtype.kind in "fc" else 0
         return out
 
 
@@ -914,7 +988,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
           metric_options: dict | None = None, max_iter: int = 100, tol: float = 1e-6,
           radius: float | None = None, orientation: str = "prefer",
           extend_keep: float = EXTEND_KEEP, signature_weight: float = SIGNATURE_WEIGHT,
-          rank_tau_scale: float | None = None, rank_residual: str = "difference") -> MatchResult:
+          rank_tau_scale: float | None = None, rank_residual: str = "difference",
+          dense: bool = False) -> MatchResult:
     r"""Gromov-Hausdorff distance and correspondence between two shapes.
 
     Parameters
@@ -1067,6 +1142,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         or of the log ratios of the distances (``"log"``, a multiplicative distortion,
         :func:`gromov.gmds.log_ratio_residuals`). Recognition passes
         :data:`RANK_RESIDUAL` ("log"). Nothing else changes.
+    dense : bool, default False
+        Also compute the dense maps: an image on Y for every input vertex of X and on X for
+        every input vertex of Y (``x_to_y_dense_*``, ``y_to_x_dense_*``;
+        :func:`gromov.dense.dense_maps`), placed by their distances to the matched samples.
 
     Returns
     -------
@@ -1237,6 +1316,15 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     else:
         xy_face, xy_bary, xy_vertex = sy.locate(img_p)
         yx_face, yx_bary, yx_vertex = sx.locate(img_q)
+    extra = {}
+    if dense:
+        from .dense import dense_maps
+
+        on_x, on_y = ((P, img_q0), (img_p0, Q)) if discrete else ((P, img_q), (img_p, Q))
+        mxy, myx = dense_maps(sx, sy, on_x, on_y)
+        extra = {"x_to_y_dense_face": mxy.face, "x_to_y_dense_bary": mxy.bary, "x_to_y_dense_vertex": mxy.vertex,
+                 "y_to_x_dense_face": myx.face, "y_to_x_dense_bary": myx.bary, "y_to_x_dense_vertex": myx.vertex,
+                 "input_faces": (_file_faces(sx), _file_faces(sy))}
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
         distortion_l2=d_l2, distortion_linf=d_linf, norm=norm_name, metric=metric, solver=solver,
@@ -1249,4 +1337,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         orientation=orient, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
         ranking_distance=ranking,
         pair_distortion=residual,
-        history=np.asarray(history))
+        history=np.asarray(history), **extra)
+
+
+def _file_faces(s: "ShapeMetric") -> np.ndarray | None:
+    """Faces of the input mesh in file vertex ids (None for a point cloud)."""
+    return s.input.input_ids[s.input.faces] if s.has_faces else None

@@ -1206,8 +1206,12 @@ def _admit_angle(pol, c, phi):
 
 
 @njit(cache=True)
-def _march(tab, sources, T, pos, hk, hv, lab, dirs, mode):
+def _march(tab, sources, T, pos, hk, hv, lab, dirs, mode, limit=np.inf):
     """Fast marching from the set ``sources`` into ``T`` (overwritten).
+
+    The march stops once every value up to ``limit`` is final: then ``T[v] <= limit`` holds
+    exactly for the vertices within ``limit`` of the sources, and every other value is a
+    tentative one above ``limit`` (or inf).
 
     ``tab``: the tables of :class:`FastMarching` (``_tables``). ``pos``, ``hv``,
     ``lab`` (n, int32), ``hk`` (n, float64) and ``dirs`` (n, 4) are work arrays.
@@ -1244,7 +1248,7 @@ def _march(tab, sources, T, pos, hk, hv, lab, dirs, mode):
             dirs[s, 3] = 0.0
             _sift_up(hk, hv, pos, size, 0.0, s)
             size += 1
-    while size > 0:
+    while size > 0 and hk[0] <= limit:
         v = hv[0]
         Tv = hk[0]
         size = _pop(hk, hv, pos, size)
@@ -1409,6 +1413,28 @@ def _march_many_serial(tab, sources, out, mode):
         out[i, :] = T[:m]
 
 
+@njit(cache=True, parallel=True)
+def _march_pairs(tab, sources, targets, limit, out, nchunks, mode):
+    """``out[i, j]`` = distance from ``sources[i]`` to vertex ``targets[i, j]``, each march
+    stopped at ``limit`` (values beyond it are inf)."""
+    k = sources.shape[0]
+    n = tab[0].shape[0] - 1
+    for ch in prange(nchunks):
+        T = np.empty(n)
+        pos = np.empty(n, np.int32)
+        hk = np.empty(n)
+        hv = np.empty(n, np.int32)
+        lab = np.empty(n, np.int32)
+        dirs = np.empty((n, 4))
+        src = np.empty(1, np.int64)
+        for i in range(ch, k, nchunks):
+            src[0] = sources[i]
+            _march(tab, src, T, pos, hk, hv, lab, dirs, mode, limit)
+            for j in range(targets.shape[1]):
+                t = T[targets[i, j]]
+                out[i, j] = t if t <= limit else np.inf
+
+
 # ----------------------------------------------------------------------------------------
 # public solver
 # ----------------------------------------------------------------------------------------
@@ -1567,6 +1593,37 @@ class FastMarching:
                 _march_many(self._tables, s, out, nchunks, self._mode)
         else:
             _march_many_serial(self._tables, s, out, self._mode)
+        return out
+
+    def distances_to(self, sources, targets, *, limit: float = np.inf) -> np.ndarray:
+        """Distance from each source to a few vertices of its own.
+
+        Parameters
+        ----------
+        sources : sequence of int, shape (k,)
+            Vertex indices.
+        targets : array_like of int, shape (k, t)
+            ``targets[i]``: the vertices whose distance from ``sources[i]`` is wanted.
+        limit : float, default inf
+            Each march stops once all distances up to ``limit`` are final, so that a source
+            near its targets costs a march over a small disk only.
+
+        Returns
+        -------
+        ndarray, shape (k, t)
+            ``out[i, j]`` = distance from ``sources[i]`` to ``targets[i, j]``, the same value
+            :meth:`distance` gives; ``inf`` beyond ``limit`` or if unreachable.
+        """
+        s = self._check_sources(sources)
+        t = np.asarray(targets, dtype=np.int64)
+        if t.ndim != 2 or len(t) != len(s):
+            raise MetricError(f"targets must have shape ({len(s)}, t), got {t.shape}")
+        if t.size and (t.min() < 0 or t.max() >= self.n_vertices):
+            raise MetricError(f"targets must lie in [0, {self.n_vertices}) (vertex indices)")
+        out = np.empty(t.shape)
+        nchunks = max(1, min(len(s), 32 * get_num_threads()))
+        with parallel_chunksize(1):
+            _march_pairs(self._tables, s, t, float(limit), out, nchunks, self._mode)
         return out
 
     def pairwise(self) -> np.ndarray:

@@ -1,0 +1,231 @@
+r"""Dense correspondence: an image on the other shape for every input vertex.
+
+:func:`match` finds a correspondence between farthest-point samples. The dense map places
+every other point of X where its distances to the matched samples fit best on Y -- the
+paper's interpolation of a point from its distances to anchor points (Bronstein et al., IJCV
+2010, §4; Bronstein, Bronstein & Kimmel, PNAS 2006), applied to each working vertex:
+
+.. math::
+
+    T(v) = \arg\min_{w \in Y} \sum_{l \in L} \big(d_Y(w, y_l) - d_X(v, x_l)\big)^2 ,
+
+over the landmark pairs :math:`(x_l, y_l)` of the two-sided sample correspondence (X's
+samples with their images, Y's samples with theirs). Two refinements make it precise:
+
+- **a finer scale.** With the heat-kernel diffusion metric the distances are measured at
+  :data:`DENSE_TAU_SCALE` times the diffusion time the samples were matched at, from the same
+  eigenpairs: the coarse scale finds the right correspondence, the finer one places a point
+  between its neighbours more sharply;
+- **trimmed landmarks.** A landmark whose distances disagree with the map everywhere (an
+  image placed off by the search, or a sample beside a change of topology) is set aside:
+  ``DENSE_ROUNDS`` times, the fraction ``DENSE_KEEP`` of the landmarks with the smallest RMS
+  residual over all vertices is kept (least trimmed squares over landmarks).
+
+Input vertices are then carried through the working meshes: an input vertex of X lies on a
+working face; its three corners' images, weighted by its barycentric coordinates, give a
+point that is projected onto Y's input mesh near those images (never onto another sheet that
+passes closer in space). The measurements that chose these settings are in
+``docs/design/dense.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._project import project_among
+from .resolution import gather
+
+__all__ = ["DenseMap", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS"]
+
+#: Heat-kernel diffusion time of the dense placement, relative to the match's.
+DENSE_TAU_SCALE = 0.25
+#: Fraction of the landmarks kept, and how many trimming rounds.
+DENSE_KEEP = 0.7
+DENSE_ROUNDS = 3
+
+
+@dataclass(frozen=True, eq=False)
+class DenseMap:
+    """Images of every input vertex of one shape on the other shape's input mesh.
+
+    Arrays are indexed by the source file's vertex ids: entry ``i`` is the image of vertex
+    ``i`` of the file (``-1`` / NaN for a file vertex that loading dropped).
+
+    Attributes
+    ----------
+    face : ndarray (n,) of int64
+        Face of the target's input mesh holding the image; -1 on a point cloud.
+    bary : ndarray (n, 3)
+        Barycentric coordinates of the image in ``face``; NaN on a point cloud.
+    vertex : ndarray (n,) of int64
+        Nearest target input vertex (file id): the corner with the largest weight, or on a
+        point cloud the image point itself.
+    """
+
+    face: np.ndarray
+    bary: np.ndarray
+    vertex: np.ndarray
+
+
+def _corners(s, points) -> tuple[np.ndarray, np.ndarray]:
+    """``(corners (L, 3), bary (L, 3))`` of landmark points: SurfacePoints on a mesh, or
+    vertex ids (a point cloud, or images at vertices)."""
+    if hasattr(points, "face"):
+        return s.mesh.faces[np.asarray(points.face, dtype=np.int64)], np.asarray(points.bary, dtype=np.float64)
+    v = np.asarray(points, dtype=np.int64)
+    return np.repeat(v[:, None], 3, axis=1), np.tile([1.0, 0.0, 0.0], (len(v), 1))
+
+
+def landmark_distances(s, points, tau_scale: float = DENSE_TAU_SCALE) -> np.ndarray:
+    r"""``(n, L)``: distance from every working vertex of ``s`` to each landmark point.
+
+    Between a vertex and a point inside a face the squared distances to the face's corners
+    are interpolated barycentrically (as :class:`gromov.gmds.SurfaceDistance` does). With the
+    heat-kernel diffusion metric the distances are those at ``tau_scale`` times its diffusion
+    time (:meth:`gromov.gh.ShapeMetric.ranking_surface`, the same eigenpairs); with any other
+    metric, the metric's own.
+
+    Parameters
+    ----------
+    s : ShapeMetric
+    points : SurfacePoints or array of working vertex ids, L of them
+    tau_scale : float, default DENSE_TAU_SCALE
+    """
+    corners, bary = _corners(s, points)
+    flat = corners.ravel()
+    fine = s.ranking_surface(tau_scale) if tau_scale != 1.0 else None
+    if fine is not None:
+        psi = fine[0].embedding
+        sq = (psi * psi).sum(1)
+        d2 = sq[:, None] + sq[flat][None, :] - 2.0 * (psi @ psi[flat].T)
+    else:
+        d2 = s.distances[:, flat] ** 2
+    d2 = np.maximum(d2, 0.0).reshape(len(d2), len(corners), 3)
+    return np.sqrt(np.einsum("nlc,lc->nl", d2, bary))
+
+
+def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
+                 rounds: int = DENSE_ROUNDS) -> np.ndarray:
+    r"""Working vertex of Y for each working vertex of X, from distances to paired landmarks.
+
+    :math:`T(v) = \arg\min_w \sum_{l \in K} (a^Y_{wl} - a^X_{vl})^2` over a landmark subset
+    :math:`K`: all of them first, then ``rounds`` times the ``ceil(keep L)`` landmarks with the
+    smallest residual :math:`(\frac1n \sum_v (a^Y_{T(v) l} - a^X_{vl})^2)^{1/2}`.
+
+    Parameters
+    ----------
+    ax : ndarray (n_X, L)
+        Distances from X's working vertices to X's landmarks.
+    ay : ndarray (n_Y, L)
+        Distances from Y's working vertices to the paired landmarks on Y.
+    keep : float in (0, 1], default DENSE_KEEP
+    rounds : int, default DENSE_ROUNDS
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+    """
+    ax = np.asarray(ax)
+    ay = np.asarray(ay)
+    if ax.ndim != 2 or ay.ndim != 2 or ax.shape[1] != ay.shape[1]:
+        raise ValueError(f"ax and ay must be (n_X, L) and (n_Y, L), got {ax.shape} and {ay.shape}")
+    if not 0.0 < keep <= 1.0:
+        raise ValueError(f"keep must be in (0, 1], got {keep!r}")
+    # the costs in single precision: half the time of the products, and the map is the same
+    # but for near-ties (docs/design/dense.md)
+    ax32, ay32 = ax.astype(np.float32), ay.astype(np.float32)
+    L = ax.shape[1]
+    h = max(3, int(np.ceil(keep * L - 1e-9)))
+    idx = np.arange(L)
+    for r in range(int(rounds) + 1):
+        a, b = ax32[:, idx], ay32[:, idx]
+        cost = a @ b.T
+        cost *= -2.0
+        cost += (b * b).sum(1)[None, :]   # + |a_v|^2, constant per row
+        T = np.argmin(cost, axis=1)
+        if r == rounds or h >= L:
+            break
+        e = ((ay[T] - ax) ** 2).mean(axis=0)
+        idx = np.sort(np.argsort(e, kind="stable")[:h])
+    return T.astype(np.int64)
+
+
+def _input_images(sx, sy, T: np.ndarray):
+    """``(face, bary, vertex)`` on Y's input mesh of every input vertex of X, from the working
+    map ``T``: each input vertex's working face corners' images, weighted by its barycentric
+    coordinates, projected onto Y's input near those images."""
+    wx, wy = sx.working, sy.working
+    if sx.has_faces:
+        corners = T[sx.mesh.faces[wx.source_face]]            # (n_in, 3) images of the corners
+        w = wx.source_bary
+    else:
+        corners = np.repeat(T[wx.source_nearest][:, None], 3, axis=1)
+        w = np.tile([1.0, 0.0, 0.0], (len(corners), 1))
+    if not sy.has_faces:
+        best = corners[np.arange(len(corners)), np.argmax(w, axis=1)]
+        n = len(best)
+        return np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), wy.to_input_ids(best)
+    pos = np.einsum("kc,kcd->kd", w, sy.mesh.vertices[corners])
+    if sy._owned is None:
+        sy._owned = wy.owned()
+    own_ptr, own_ids = sy._owned
+    # the nearest of the input vertices the three images own (the point lies between them),
+    # then the closest point on that vertex's faces
+    ptr, ids = gather(own_ptr, own_ids, np.arange(0, corners.size + 1, 3), corners.ravel())
+    lens = np.diff(ptr)
+    d2 = ((sy.input.vertices[ids] - np.repeat(pos, lens, axis=0)) ** 2).sum(axis=1)
+    first = _segment_argmin(d2, ptr)
+    near = ids[first]
+    face, bary, _ = project_among(pos, sy.input, np.arange(len(near) + 1), near)
+    vertex = sy.input.faces[face, np.argmax(bary, axis=1)]
+    return face, bary, sy.input.input_ids[vertex]
+
+
+def _segment_argmin(values: np.ndarray, ptr: np.ndarray) -> np.ndarray:
+    """Index into ``values`` of the smallest value of each non-empty segment
+    ``values[ptr[i]:ptr[i + 1]]`` (the first of equal ones)."""
+    mins = np.minimum.reduceat(values, ptr[:-1])
+    hits = np.flatnonzero(values == np.repeat(mins, np.diff(ptr)))
+    return hits[np.searchsorted(hits, ptr[:-1])]
+
+
+def _by_file_id(s, face, bary, vertex) -> DenseMap:
+    """The images indexed by ``s``'s input file ids (-1 / NaN where the file has no vertex)."""
+    ids = s.input.input_ids
+    n = int(ids.max()) + 1 if len(ids) else 0
+    if n == len(ids) and np.array_equal(ids, np.arange(n)):
+        return DenseMap(face, bary, vertex)
+    f = np.full(n, -1, dtype=np.int64)
+    b = np.full((n, 3), np.nan)
+    v = np.full(n, -1, dtype=np.int64)
+    f[ids], b[ids], v[ids] = face, bary, vertex
+    return DenseMap(f, b, v)
+
+
+def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
+               keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS) -> tuple[DenseMap, DenseMap]:
+    """Dense maps X -> Y and Y -> X from paired landmarks.
+
+    Parameters
+    ----------
+    sx, sy : ShapeMetric
+    landmarks_x, landmarks_y : pairs ``(SurfacePoints or vertex ids, SurfacePoints or vertex
+        ids)``
+        The two halves of the sample correspondence on each shape, in matching order: on X
+        ``(P, images of Q)``, on Y ``(images of P, Q)``.
+    tau_scale, keep, rounds
+        :func:`landmark_distances`, :func:`anchored_map`.
+
+    Returns
+    -------
+    (DenseMap, DenseMap)
+        X -> Y indexed by X's file ids, Y -> X indexed by Y's.
+    """
+    ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
+    ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
+    t_xy = anchored_map(ax, ay, keep=keep, rounds=rounds)
+    t_yx = anchored_map(ay, ax, keep=keep, rounds=rounds)
+    return (_by_file_id(sx, *_input_images(sx, sy, t_xy)),
+            _by_file_id(sy, *_input_images(sy, sx, t_yx)))
