@@ -301,6 +301,11 @@ def cmd_match(args) -> int:
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working {'mesh' if s.has_faces else 'point set'} of {path}")
+    dense = bool(args.dense or args.map)
+    if args.map:
+        _check_folder(args.map, "--map")
+    if args.out:
+        _check_folder(args.out, "--out")
     if args.plot:
         for path, s in zip((args.x, args.y), shapes):
             if not s.has_faces:
@@ -316,15 +321,14 @@ def cmd_match(args) -> int:
             bar.update(1)
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
               solver=args.solver, seed=args.seed, search_vertices=args.search_vertices,
-              orientation=args.orientation,
+              orientation=args.orientation, dense=dense,
               **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
     if args.out:
-        out = Path(args.out)
-        if out.parent and not out.parent.exists():
-            raise _UserError(f"output folder {out.parent} does not exist")
-        np.savez_compressed(out, **r.arrays())
+        np.savez_compressed(Path(args.out), **r.arrays())
+    if args.map:   # SHREC's exchange format: one 1-based vertex id of Y per vertex of X
+        np.savetxt(args.map, r.x_to_y_dense_vertex + 1, fmt="%d")
     if args.plot:
-        _plot_match(r, shapes, args)
+        (_plot_dense if dense else _plot_match)(r, shapes, args)
     if args.json:   # the metric's options too: the distance's units depend on them
         print(json.dumps({**r.to_dict(), "metric_options": options}))
     else:
@@ -342,7 +346,10 @@ def cmd_match(args) -> int:
             kind = ("keeps the orientation" if r.orientation > 0.5 else
                     "reverses the orientation (a mirror image)")
             print(f"  the map {kind}: {r.orientation:.0%} of small sample triangles keep their sense of rotation")
-        for f in (args.out, args.plot):
+        if dense:
+            print(f"  dense maps: {len(r.x_to_y_dense_vertex)} vertices of X on Y, "
+                  f"{len(r.y_to_x_dense_vertex)} of Y on X")
+        for f in (args.out, args.map, args.plot):
             if f:
                 print(f"  wrote {f}")
     return 0
@@ -566,6 +573,39 @@ def _plot_match(r, shapes, args) -> None:
                               f"to {Path(args.y).name} (relative GH {r.relative_distance:.2%})")
 
 
+def _check_folder(path: str, option: str) -> None:
+    folder = Path(path).parent
+    if str(folder) and not folder.exists():
+        raise _UserError(f"{option}: output folder {folder} does not exist")
+
+
+def _plot_dense(r, shapes, args) -> None:
+    """``gromov match --dense --plot``: X painted by its coordinates and Y by the same colours
+    carried through the dense map; where the map is unreliable (the nearest sample's
+    distortion above three times the median) Y's colours are greyed."""
+    from .experiments.report import coordinate_colours, plot_transfer
+
+    sx, sy = shapes
+    x_rgb = coordinate_colours(sx.input)
+    y_rgb = r.transfer(_by_file(sx.input, x_rgb), method="barycentric")[sy.input.input_ids]
+    _, e_y = r.sample_distortion
+    q = sy.working.from_source(sy.input.from_input_ids(r.y_samples))
+    nearest = np.argmin(sy.distances[:, q], axis=1)[sy.working.source_nearest]
+    shaky = e_y[nearest] > 3.0 * np.median(e_y)
+    y_rgb[shaky] = 0.35 * y_rgb[shaky] + 0.65 * 0.8
+    plot_transfer(sx.input, sy.input, x_rgb, y_rgb, args.plot,
+                  titles=(Path(args.x).name, Path(args.y).name),
+                  title=f"{args.metric}: colours of {Path(args.x).name} carried by the dense map\n"
+                        f"(grey: high distortion, {shaky.mean():.0%} of the vertices)")
+
+
+def _by_file(mesh, values: np.ndarray) -> np.ndarray:
+    """Rows of a mesh's vertices placed at their file ids (zeros where the file has none)."""
+    out = np.zeros((int(mesh.input_ids.max()) + 1,) + values.shape[1:])
+    out[mesh.input_ids] = values
+    return out
+
+
 def _json_value(o):
     """numpy scalars and arrays (e.g. a weld's gaps) as JSON numbers and lists."""
     if hasattr(o, "tolist"):
@@ -757,9 +797,16 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
+    q.add_argument("--dense", action="store_true",
+                   help="also map every vertex: an image on Y for each vertex of X and on X for "
+                        "each vertex of Y (x_to_y_dense_vertex/face/bary and y_to_x_dense_* in --out)")
+    q.add_argument("--map", default=None, metavar="FILE.txt",
+                   help="write the dense X -> Y vertex map: one 1-based vertex id of Y per vertex "
+                        "of X, one per line (SHREC's format; implies --dense)")
     q.add_argument("--plot", default=None, metavar="FILE.png",
                    help="draw the correspondence: the cells of X's samples and, in the same "
-                        "colours, the cells around their images on Y")
+                        "colours, the cells around their images on Y; with --dense, X's "
+                        "colours carried to Y by the dense map")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_match)
 

@@ -30,7 +30,8 @@ import numpy as np
 from ..mesh import Mesh
 from .datasets import EXPERIMENT1_CLASSES
 
-__all__ = ["PAPER", "PAPER_CLASSES", "other_classes", "voronoi_labels", "plot_correspondence", "write_report"]
+__all__ = ["PAPER", "PAPER_CLASSES", "other_classes", "voronoi_labels", "plot_correspondence",
+           "plot_transfer", "coordinate_colours", "write_report"]
 
 logger = logging.getLogger(__name__)
 
@@ -187,8 +188,11 @@ _LIGHT = np.array([-0.45, 0.55, 1.0]) / np.linalg.norm([-0.45, 0.55, 1.0])
 _AMBIENT = 0.32
 
 
-def _draw_mesh(ax, p: np.ndarray, faces: np.ndarray, labels: np.ndarray) -> None:
-    """Painter's algorithm: faces sorted far to near, Lambert-shaded, two-sided."""
+def _draw_mesh(ax, p: np.ndarray, faces: np.ndarray, labels: np.ndarray | None,
+               colours: np.ndarray | None = None) -> None:
+    """Painter's algorithm: faces sorted far to near, Lambert-shaded, two-sided. Faces take the
+    colour of their vertices' ``labels`` (categorical), or the mean of their vertices' RGB
+    ``colours``."""
     from matplotlib.collections import PolyCollection
 
     tri = p[faces]  # (m, 3, 3) in view coordinates
@@ -197,7 +201,8 @@ def _draw_mesh(ax, p: np.ndarray, faces: np.ndarray, labels: np.ndarray) -> None
     n = np.divide(n, norm, out=np.tile([0.0, 0.0, 1.0], (len(n), 1)), where=norm > 0)
     n[n[:, 2] < 0] *= -1.0  # two-sided lighting: orientation of the input does not matter
     shade = _AMBIENT + (1.0 - _AMBIENT) * np.clip(n @ _LIGHT, 0.0, 1.0)
-    rgb = _label_colours(_face_labels(faces, labels)) * shade[:, None]
+    base = _label_colours(_face_labels(faces, labels)) if colours is None else colours[faces].mean(axis=1)
+    rgb = np.clip(base, 0.0, 1.0) * shade[:, None]
     order = np.argsort(tri[:, :, 2].mean(axis=1), kind="stable")
     pc = PolyCollection(tri[order, :, :2], facecolors=rgb[order], edgecolors=rgb[order],
                         linewidths=0.25, antialiaseds=True)
@@ -268,9 +273,15 @@ def plot_correspondence(x_mesh: Mesh, y_mesh: Mesh, x_labels, y_labels, path, *,
     if isinstance(dpi, bool) or not isinstance(dpi, numbers.Integral) or dpi <= 0:
         raise ValueError(f"dpi must be a positive integer, got {dpi!r}")
     rot = _principal_view((x_mesh, y_mesh)) if view is None else _check_view(view)
+    return _two_panels((x_mesh, y_mesh), ((lx, None), (ly, None)), rot, path, titles, title, dpi)
 
+
+def _two_panels(meshes, paints, rot, path, titles, title, dpi) -> Path:
+    """Both meshes side by side, seen along ``rot`` at one scale; ``paints``: per mesh
+    ``(labels, None)`` or ``(None, RGB per vertex)``."""
     from .recognition import _figure
 
+    x_mesh, y_mesh = meshes
     proj = []
     for m in (x_mesh, y_mesh):
         p = m.vertices @ rot.T
@@ -284,11 +295,10 @@ def plot_correspondence(x_mesh: Mesh, y_mesh: Mesh, x_labels, y_labels, path, *,
     panel_h = float(np.clip(panel_w * hy / hx, 1.6, 6.0))
     top = 0.35 + (0.35 if title else 0.0)
     fig = _figure((2 * panel_w, panel_h + top), int(dpi))
-    for i, ((p, centre, _), m, lab, sub) in enumerate(zip(proj, (x_mesh, y_mesh), (lx, ly),
-                                                          titles)):
+    for i, ((p, centre, _), m, (lab, rgb), sub) in enumerate(zip(proj, (x_mesh, y_mesh), paints, titles)):
         ax = fig.add_axes((i * 0.5, 0.0, 0.5, panel_h / (panel_h + top)))
         if m.n_faces:
-            _draw_mesh(ax, p, m.faces, lab)
+            _draw_mesh(ax, p, m.faces, lab, rgb)
         ax.set_xlim(centre[0] - pad * hx, centre[0] + pad * hx)
         ax.set_ylim(centre[1] - pad * hy, centre[1] + pad * hy)
         ax.set_aspect("equal", adjustable="box")
@@ -299,6 +309,45 @@ def plot_correspondence(x_mesh: Mesh, y_mesh: Mesh, x_labels, y_labels, path, *,
     path = Path(path)
     fig.savefig(path, format="png", dpi=int(dpi))
     return path
+
+
+def coordinate_colours(mesh: Mesh, view=None) -> np.ndarray:
+    """``(n, 3)`` RGB in [0, 1]: each vertex's coordinates along the principal axes, scaled
+    to the unit cube -- a smooth function that tells every part of a shape from the others,
+    the usual way to show a dense map (its values carried to the other shape)."""
+    rot = _principal_view((mesh,)) if view is None else _check_view(view)
+    p = mesh.vertices @ rot.T
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    return 0.15 + 0.8 * (p - lo) / np.maximum(hi - lo, 1e-12)
+
+
+def plot_transfer(x_mesh: Mesh, y_mesh: Mesh, x_colours, y_colours, path, *,
+                  titles: tuple[str, str] = ("X", "Y"), title: str | None = None,
+                  dpi: int = 110, view=None) -> Path:
+    """Draw a dense map as a colour function of X and the same function carried to Y.
+
+    As :func:`plot_correspondence`, but each shape is painted with per-vertex RGB colours
+    (e.g. :func:`coordinate_colours` of X and :meth:`gromov.MatchResult.transfer` of them
+    to Y), both seen from the same viewpoint and at the same scale.
+
+    Parameters
+    ----------
+    x_mesh, y_mesh : Mesh
+    x_colours, y_colours : array_like, shape (n_vertices, 3)
+        RGB in [0, 1] per vertex of each mesh.
+    path, titles, title, dpi, view
+        As :func:`plot_correspondence`.
+    """
+    rgbs = []
+    for name, m, c in (("x_colours", x_mesh, x_colours), ("y_colours", y_mesh, y_colours)):
+        if not isinstance(m, Mesh):
+            raise TypeError(f"the meshes must be gromov.Mesh, got {type(m).__name__}")
+        c = np.asarray(c, dtype=np.float64)
+        if c.shape != (m.n_vertices, 3) or not np.all(np.isfinite(c)):
+            raise ValueError(f"{name} must be finite RGB of shape ({m.n_vertices}, 3), got {c.shape}")
+        rgbs.append((None, c))
+    rot = _principal_view((x_mesh, y_mesh)) if view is None else _check_view(view)
+    return _two_panels((x_mesh, y_mesh), rgbs, rot, path, titles, title, dpi)
 
 
 # ---------------------------------------------------------------------------- formatting

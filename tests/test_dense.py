@@ -1,0 +1,192 @@
+"""Dense maps: every input vertex gets an image, without reading the vertex order."""
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov.cli import main
+from gromov.dense import anchored_map
+from gromov.evaluate import dense_error, dense_errors
+from gromov.mesh import Mesh
+from gromov.metrics._fmm import FastMarching
+from gromov.shapes import grid, icosphere, rolled_grid
+
+from test_gmds import bumpy_torus as _bumpy_torus
+
+
+def bumpy_torus() -> Mesh:
+    """An asymmetric torus of 700 vertices numbered 0..699 (as read from a file)."""
+    t = _bumpy_torus()
+    return Mesh(t.vertices, t.faces)
+
+
+def permutation_of(m: Mesh, seed: int):
+    """``(copy, perm)``: copy vertex j is vertex perm[j] of ``m`` (moved and rotated too)."""
+    rng = np.random.default_rng(seed)
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    perm = rng.permutation(m.n_vertices)
+    return Mesh(m.vertices[perm] @ rot.T + rng.normal(size=3), np.argsort(perm)[m.faces]), perm
+
+
+@pytest.fixture(scope="module")
+def torus_pair():
+    x = bumpy_torus()
+    y, perm = permutation_of(x, 4)
+    return x, y, perm, gromov.match(x, y, "diffusion", n_samples=30, resolution=None, dense=True)
+
+
+def test_a_permuted_copy_gets_the_permuted_map(torus_pair):
+    x, y, perm, r = torus_pair
+    inv = np.argsort(perm)   # vertex i of x is vertex inv[i] of y
+    assert r.x_to_y_dense_vertex.shape == (x.n_vertices,)
+    assert r.y_to_x_dense_vertex.shape == (y.n_vertices,)
+    # the vertex order carries no hint: the map is the permutation, not the identity
+    assert np.mean(r.x_to_y_dense_vertex == inv) > 0.97
+    assert np.mean(r.y_to_x_dense_vertex == perm) > 0.97
+    assert np.mean(r.x_to_y_dense_vertex == np.arange(x.n_vertices)) < 0.05
+    e = dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, y, inv)
+    assert e.mean < 1e-3 and e.branch == "direct"
+
+
+def test_a_shape_matched_with_itself_maps_every_vertex_home():
+    x = bumpy_torus()
+    r = gromov.match(x, x, "geodesic", n_samples=30, resolution=None, dense=True)
+    ids = np.arange(x.n_vertices)
+    assert np.mean(r.x_to_y_dense_vertex == ids) > 0.97
+    e = dense_error(r.y_to_x_dense_face, r.y_to_x_dense_bary, x, ids)
+    assert e.mean < 1e-3
+
+
+def test_sheet_and_rolled_sheet_dense_error_near_zero():
+    flat, rolled = grid(31, 16), rolled_grid(31, 16)   # isometric, same numbering
+    r = gromov.match(flat, rolled, "geodesic", n_samples=40, resolution=None, dense=True)
+    ids = np.arange(flat.n_vertices)
+    # the sheet has four isometries (flips of u and of v): the best reading counts
+    nu, nv = 31, 16
+    i, j = ids // nv, ids % nv
+    readings = [ids, (nu - 1 - i) * nv + j, i * nv + (nv - 1 - j), (nu - 1 - i) * nv + (nv - 1 - j)]
+    errs = [dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, rolled, t) for t in readings]
+    best = min(errs, key=lambda e: e.mean)
+    assert best.mean < 0.01
+    assert best.per_diameter().mean() < 0.01
+    assert max(e.mean for e in errs) > 0.1   # the readings differ: the test can fail
+
+
+def test_transfer_keeps_constants_and_labels(torus_pair):
+    x, y, perm, r = torus_pair
+    for method in ("nearest", "barycentric"):
+        out = r.transfer(np.full(x.n_vertices, 2.5), method=method)
+        assert out.shape == (y.n_vertices,)
+        np.testing.assert_allclose(out, 2.5)
+        back = r.transfer(np.full((y.n_vertices, 3), -1.0), method=method, direction="y_to_x")
+        np.testing.assert_allclose(back, -1.0)
+    labels = np.arange(x.n_vertices) % 7
+    moved = r.transfer(labels)
+    assert moved.dtype == labels.dtype and set(np.unique(moved)) <= set(range(7))
+    # a smooth function (a coordinate) arrives nearly unchanged on the permuted copy
+    f = x.vertices[:, 2]
+    g = r.transfer(f, method="barycentric")
+    np.testing.assert_allclose(g, f[perm], atol=0.02 * np.ptp(f))
+
+
+def test_transfer_errors(torus_pair):
+    x, _, _, r = torus_pair
+    with pytest.raises(ValueError, match="one row per vertex"):
+        r.transfer(np.zeros(x.n_vertices + 1))
+    with pytest.raises(ValueError, match="method"):
+        r.transfer(np.zeros(x.n_vertices), method="cubic")
+    sparse = gromov.match(x, x, "geodesic", n_samples=10, resolution=None)
+    assert not sparse.has_dense and sparse.x_to_y_dense_vertex is None
+    with pytest.raises(ValueError, match="dense=True"):
+        sparse.transfer(np.zeros(x.n_vertices))
+
+
+def test_anchored_map_with_exact_landmark_distances_is_the_identity():
+    m = icosphere(3)
+    d = gromov.metric_solver(m, "geodesic").pairwise()
+    rng = np.random.default_rng(0)
+    L = rng.choice(m.n_vertices, 40, replace=False)
+    np.testing.assert_array_equal(anchored_map(d[:, L], d[:, L]), np.arange(m.n_vertices))
+    # a few landmarks placed wrongly on Y are set aside by the trimming
+    bad = L.copy()
+    bad[:5] = rng.choice(m.n_vertices, 5, replace=False)
+    t = anchored_map(d[:, L], d[:, bad])
+    assert np.mean(t == np.arange(m.n_vertices)) > 0.95
+
+
+def test_point_clouds_get_images_at_points():
+    x = bumpy_torus()
+    y, perm = permutation_of(x, 5)
+    r = gromov.match(x.vertices, y.vertices, "geodesic", n_samples=30, resolution=None, dense=True)
+    inv = np.argsort(perm)
+    assert np.all(r.x_to_y_dense_face == -1) and np.all(np.isnan(r.x_to_y_dense_bary))
+    assert np.mean(r.x_to_y_dense_vertex == inv) > 0.9
+    with pytest.raises(ValueError, match="faces"):
+        r.transfer(np.zeros(x.n_vertices), method="barycentric")
+
+
+def test_fast_marching_to_targets_stops_at_the_limit():
+    m = icosphere(3)
+    fm = FastMarching(m.vertices, m.faces)
+    src = np.array([0, 5, 17])
+    tg = np.array([[1, 2, 3], [100, 200, 300], [17, 40, 600]])
+    full = fm.distances(src)[np.arange(3)[:, None], tg]
+    np.testing.assert_array_equal(fm.distances_to(src, tg), full)
+    lim = 0.5
+    np.testing.assert_array_equal(fm.distances_to(src, tg, limit=lim), np.where(full <= lim, full, np.inf))
+
+
+def test_dense_errors_on_a_sphere_are_geodesic():
+    m = icosphere(3)
+    fm = FastMarching(m.vertices, m.faces)
+    # images exactly at vertex 10, truth at vertices 0..4: the errors are the marched distances
+    indptr, fids = m.vertex_faces
+    f = fids[indptr[10]]
+    corner = int(np.argmax(m.faces[f] == 10))
+    face = np.full(5, f)
+    bary = np.tile(np.eye(3)[corner], (5, 1))
+    e = dense_errors(face, bary, m, np.arange(5), fmm=fm)
+    np.testing.assert_allclose(e, fm.distances(np.arange(5))[:, 10], rtol=1e-12)
+    # on the unit sphere the geodesic distance is the angle
+    ang = np.arccos(np.clip(m.vertices[:5] @ m.vertices[10], -1, 1))
+    np.testing.assert_allclose(e, ang, rtol=0.03, atol=1e-3)
+
+
+def test_cli_dense_outputs(tmp_path):
+    x = bumpy_torus()
+    y, perm = permutation_of(x, 6)
+    px, py = tmp_path / "x.ply", tmp_path / "y.obj"
+    gromov.save(x, px)
+    gromov.save(y, py)
+    out, mp = tmp_path / "m.npz", tmp_path / "map.txt"
+    rc = main(["match", str(px), str(py), "--samples", "30", "--resolution", "700", "--dense",
+               "--out", str(out), "--map", str(mp), "-q"])
+    assert rc == 0
+    z = np.load(out)
+    n_x, n_y = x.n_vertices, y.n_vertices
+    assert z["x_to_y_dense_vertex"].shape == (n_x,) and z["x_to_y_dense_face"].shape == (n_x,)
+    assert z["x_to_y_dense_bary"].shape == (n_x, 3)
+    assert z["y_to_x_dense_vertex"].shape == (n_y,) and z["y_to_x_dense_bary"].shape == (n_y, 3)
+    for d, n_target, m in (("x_to_y", n_y, y), ("y_to_x", n_x, x)):
+        v, f, b = z[f"{d}_dense_vertex"], z[f"{d}_dense_face"], z[f"{d}_dense_bary"]
+        assert v.min() >= 0 and v.max() < n_target
+        assert f.min() >= 0 and f.max() < m.n_faces
+        assert b.min() >= 0 and np.allclose(b.sum(axis=1), 1.0)
+    ids = np.loadtxt(mp, dtype=np.int64)
+    assert ids.shape == (n_x,) and ids.min() >= 1 and ids.max() <= n_y
+    np.testing.assert_array_equal(ids - 1, z["x_to_y_dense_vertex"])
+    assert np.mean(ids - 1 == np.argsort(perm)) > 0.97
+
+
+def test_dense_map_on_real_data_ignores_the_vertex_order(data_dir):
+    """wolf0 -> wolf1 of TOSCA (same numbering) and wolf0 -> a permuted wolf1: both precise."""
+    a = gromov.load(data_dir / "tosca" / "wolf0.off.gz")
+    b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
+    c, perm = permutation_of(b, 7)
+    inv = np.argsort(perm)
+    ids = np.arange(a.n_vertices)
+    means = []
+    for target, truth in ((b, ids), (c, inv[ids])):
+        r = gromov.match(a, target, dense=True)
+        means.append(dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, target, truth).mean)
+    assert max(means) < 0.03
