@@ -40,7 +40,7 @@ from .resolution import gather
 __all__ = ["DenseMap", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS"]
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
-DENSE_TAU_SCALE = 0.25
+DENSE_TAU_SCALE = 0.5
 #: Fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
