@@ -109,6 +109,7 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
         (["match", "{sphere}", "{sphere}", "--plot", "{tmp}/c.jpg"], "--plot writes a PNG image"),
         (["match", "{sphere}", "{sphere}", "--map", "{tmp}/missing/m.txt"], "--map: output folder"),
         (["match", "{sphere}", "{sphere}", "--dense", "--out", "{tmp}/missing/m.npz"], "--out: output folder"),
+        (["match", "{sphere}", "{sphere}", "--html", "{tmp}/missing/m.html"], "--html: output folder"),
         (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a"],
          "one non-empty label per file (2), got 1"),
         (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a,b",

@@ -6,7 +6,8 @@ import pytest
 import gromov
 from gromov.cli import main
 from gromov.dense import anchored_map
-from gromov.evaluate import dense_error, dense_errors
+import gromov.evaluate as evaluate
+from gromov.evaluate import GeodesicReference, dense_error, dense_errors
 from gromov.mesh import Mesh
 from gromov.metrics._fmm import FastMarching
 from gromov.shapes import grid, icosphere, rolled_grid
@@ -138,14 +139,15 @@ def test_fast_marching_to_targets_stops_at_the_limit():
 
 def test_dense_errors_on_a_sphere_are_geodesic():
     m = icosphere(3)
-    fm = FastMarching(m.vertices, m.faces)
+    ref = GeodesicReference(m)
+    fm = ref.fmm
     # images exactly at vertex 10, truth at vertices 0..4: the errors are the marched distances
     indptr, fids = m.vertex_faces
     f = fids[indptr[10]]
     corner = int(np.argmax(m.faces[f] == 10))
     face = np.full(5, f)
     bary = np.tile(np.eye(3)[corner], (5, 1))
-    e = dense_errors(face, bary, m, np.arange(5), fmm=fm)
+    e = dense_errors(face, bary, m, np.arange(5), fmm=ref)
     np.testing.assert_allclose(e, fm.distances(np.arange(5))[:, 10], rtol=1e-12)
     # on the unit sphere the geodesic distance is the angle
     ang = np.arccos(np.clip(m.vertices[:5] @ m.vertices[10], -1, 1))
@@ -158,10 +160,12 @@ def test_cli_dense_outputs(tmp_path):
     px, py = tmp_path / "x.ply", tmp_path / "y.obj"
     gromov.save(x, px)
     gromov.save(y, py)
-    out, mp = tmp_path / "m.npz", tmp_path / "map.txt"
+    out, mp, page = tmp_path / "m.npz", tmp_path / "map.txt", tmp_path / "m.html"
     rc = main(["match", str(px), str(py), "--samples", "30", "--resolution", "700", "--dense",
-               "--out", str(out), "--map", str(mp), "-q"])
+               "--out", str(out), "--map", str(mp), "--html", str(page), "-q"])
     assert rc == 0
+    text = page.read_text()
+    assert '"mesh3d"' in text and '<script src="http' not in text
     z = np.load(out)
     n_x, n_y = x.n_vertices, y.n_vertices
     assert z["x_to_y_dense_vertex"].shape == (n_x,) and z["x_to_y_dense_face"].shape == (n_x,)
@@ -190,3 +194,26 @@ def test_dense_map_on_real_data_ignores_the_vertex_order(data_dir):
         r = gromov.match(a, target, dense=True)
         means.append(dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, target, truth).mean)
     assert max(means) < 0.03
+
+
+def test_far_errors_beyond_the_march_budget_come_from_a_coarse_copy(monkeypatch):
+    m = icosphere(4)   # 2,562 vertices; the coarse copy has 600
+    ref = GeodesicReference(m)
+    rng = np.random.default_rng(1)
+    truth = rng.integers(0, m.n_vertices, 300)
+    img = rng.integers(0, m.n_vertices, 300)   # a scrambled map: most errors are large
+    indptr, fids = m.vertex_faces
+    face = fids[indptr[img]]
+    bary = np.eye(3)[np.argmax(m.faces[face] == img[:, None], axis=1)]
+    exact = dense_errors(face, bary, m, truth, fmm=ref)
+    monkeypatch.setattr(evaluate, "MAX_FULL_MARCHES", 10)
+    monkeypatch.setattr(evaluate, "COARSE_VERTICES", 600)
+    approx = dense_errors(face, bary, m, truth, fmm=GeodesicReference(m))
+    limit = evaluate.DENSE_LIMITS[-1] * np.sqrt(m.area)
+    far, near = exact > limit, exact < 0.8 * limit   # (a face's far corner can pass the limit)
+    assert far.sum() > 200 and near.sum() > 20
+    np.testing.assert_array_equal(approx[near], exact[near])   # near ones are marched exactly
+    assert np.median(np.abs(approx[far] - exact[far]) / exact[far]) < 0.03
+    # each end snapped to the nearest coarse vertex: off by about an edge at most
+    edge = gromov.simplify(m, 600).mesh.mean_edge_length
+    assert np.max(np.abs(approx[far] - exact[far])) < 1.5 * edge

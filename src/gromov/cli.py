@@ -301,9 +301,18 @@ def cmd_match(args) -> int:
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working {'mesh' if s.has_faces else 'point set'} of {path}")
-    dense = bool(args.dense or args.map)
+    dense = bool(args.dense or args.map or args.html)
     if args.map:
         _check_folder(args.map, "--map")
+    if args.html:
+        _check_folder(args.html, "--html")
+        for path, s in zip((args.x, args.y), shapes):
+            if not s.has_faces:
+                raise _UserError(f"--html shows triangle meshes; {path} is a point cloud")
+        try:
+            import plotly  # noqa: F401
+        except ImportError:
+            raise _UserError("--html needs plotly: pip install 'gromov[plot]'") from None
     if args.out:
         _check_folder(args.out, "--out")
     if args.plot:
@@ -329,6 +338,11 @@ def cmd_match(args) -> int:
         np.savetxt(args.map, r.x_to_y_dense_vertex + 1, fmt="%d")
     if args.plot:
         (_plot_dense if dense else _plot_match)(r, shapes, args)
+    if args.html:
+        from .experiments.view import write_match_html
+
+        write_match_html(shapes[0].input, shapes[1].input, r, args.html,
+                         titles=(Path(args.x).name, Path(args.y).name))
     if args.json:   # the metric's options too: the distance's units depend on them
         print(json.dumps({**r.to_dict(), "metric_options": options}))
     else:
@@ -349,7 +363,7 @@ def cmd_match(args) -> int:
         if dense:
             print(f"  dense maps: {len(r.x_to_y_dense_vertex)} vertices of X on Y, "
                   f"{len(r.y_to_x_dense_vertex)} of Y on X")
-        for f in (args.out, args.map, args.plot):
+        for f in (args.out, args.map, args.plot, args.html):
             if f:
                 print(f"  wrote {f}")
     return 0
@@ -807,6 +821,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="draw the correspondence: the cells of X's samples and, in the same "
                         "colours, the cells around their images on Y; with --dense, X's "
                         "colours carried to Y by the dense map")
+    q.add_argument("--html", default=None, metavar="FILE.html",
+                   help="write one self-contained page showing both shapes side by side, to turn "
+                        "and zoom: X's colours carried to Y by the dense map, and the sample "
+                        "correspondences (implies --dense; needs plotly)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_match)
 

@@ -16,7 +16,7 @@ from .gh import MatchResult, ShapeMetric
 from .mesh import Mesh
 
 __all__ = ["CorrespondenceError", "correspondence_error", "image_errors", "DenseError", "dense_errors",
-           "dense_error"]
+           "dense_error", "GeodesicReference"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,12 +112,45 @@ def correspondence_error(result: MatchResult, y: ShapeMetric, truth=None,
 DENSE_LIMITS = (0.05, 0.25)
 #: Points on which :func:`dense_error` first compares the direct and the mirrored reading.
 MIRROR_PROBE = 500
+#: At most this many unlimited marches per map; beyond it the errors above the last limit are
+#: read off the all-pairs geodesic distances of a copy of the target simplified to
+#: ``COARSE_VERTICES`` vertices (:class:`GeodesicReference`).
+MAX_FULL_MARCHES = 1000
+COARSE_VERTICES = 3000
 
 
-def _fast_marching(target: Mesh):
-    from .metrics._fmm import FastMarching
+class GeodesicReference:
+    """Geodesic distances on a target's input mesh, for scoring maps onto it.
 
-    return FastMarching(target.vertices, target.faces)
+    Holds the fast-marching precomputation of the mesh (``fmm``) and, built on first use, a
+    copy simplified to :data:`COARSE_VERTICES` vertices with all its pairwise geodesic
+    distances, for errors too large to march to one by one (a grossly wrong map): there the
+    error is the distance between the working vertices nearest to the image and to the truth,
+    within the coarse mesh's edge length (about 2% of sqrt(area)) of the exact one.
+    """
+
+    def __init__(self, target: Mesh):
+        from .metrics._fmm import FastMarching
+
+        self.target = target
+        self.fmm = FastMarching(target.vertices, target.faces)
+        self._coarse = None
+
+    def coarse(self, face: np.ndarray, bary: np.ndarray, src: np.ndarray) -> np.ndarray:
+        """Coarse distances from the vertices ``src`` to the image points."""
+        if self._coarse is None:
+            from .metrics import metric_solver
+            from .resolution import simplify
+
+            w = simplify(self.target, min(COARSE_VERTICES, self.target.n_vertices))
+            self._coarse = (w, metric_solver(w.mesh, "geodesic").pairwise())
+        w, D = self._coarse
+        img = self.target.faces[face, np.argmax(bary, axis=1)]
+        return D[w.source_nearest[img], w.source_nearest[src]]
+
+
+def _fast_marching(target: Mesh) -> GeodesicReference:
+    return GeodesicReference(target)
 
 
 def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
@@ -141,14 +174,16 @@ def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
         The target's input mesh.
     truth : ndarray (k,) of int
         The true image of each point: a vertex of ``target`` as a file id.
-    fmm : FastMarching, optional
+    fmm : GeodesicReference, optional
         Of ``target``, to reuse its precomputation across maps.
 
     Returns
     -------
     ndarray (k,)
         Absolute geodesic errors (inf where the image lies on a component the truth's
-        cannot reach).
+        cannot reach). Errors above the last limit are marched exactly when at most
+        :data:`MAX_FULL_MARCHES` points have them, else read off a coarse copy of the target
+        (:class:`GeodesicReference`).
     """
     face = np.asarray(face, dtype=np.int64)
     bary = np.asarray(bary, dtype=np.float64)
@@ -160,7 +195,7 @@ def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
     src = target.from_input_ids(np.asarray(truth, dtype=np.int64))
     if src.shape != (k,) or (k and src.min() < 0):
         raise ValueError(f"truth must hold {k} vertex ids of the target")
-    fmm = _fast_marching(target) if fmm is None else fmm
+    ref = GeodesicReference(target) if fmm is None else fmm
     corners = target.faces[face]
     err = np.full(k, np.inf)
     todo = np.arange(k)
@@ -168,7 +203,10 @@ def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
     for limit in (*DENSE_LIMITS, np.inf):
         if not todo.size:
             break
-        d = fmm.distances_to(src[todo], corners[todo], limit=limit * scale)
+        if limit == np.inf and todo.size > MAX_FULL_MARCHES:
+            err[todo] = ref.coarse(face[todo], bary[todo], src[todo])
+            break
+        d = ref.fmm.distances_to(src[todo], corners[todo], limit=limit * scale)
         done = np.isfinite(d).all(axis=1) | (limit == np.inf)
         err[todo[done]] = np.sqrt((bary[todo[done]] * d[done] ** 2).sum(axis=1))
         todo = todo[~done]
@@ -217,12 +255,12 @@ class DenseError:
         return self.errors * np.sqrt(self.area) / self.diameter
 
 
-def _diameter(target: Mesh, fmm) -> float:
+def _diameter(target: Mesh, ref: GeodesicReference) -> float:
     """Geodesic diameter by a double sweep (the farthest vertex from the farthest vertex of
     vertex 0's component), a lower bound within a few percent on bodies."""
-    d = fmm.distance([0])
+    d = ref.fmm.distance([0])
     far = int(np.argmax(np.where(np.isfinite(d), d, -1.0)))
-    d = fmm.distance([far])
+    d = ref.fmm.distance([far])
     return float(np.max(d[np.isfinite(d)]))
 
 
@@ -236,7 +274,7 @@ def dense_error(face, bary, target: Mesh, truth, symmetry=None, *, fmm=None) -> 
 
     ``truth`` are file ids of ``target``'s vertices, one per image.
     """
-    fmm = _fast_marching(target) if fmm is None else fmm
+    fmm = GeodesicReference(target) if fmm is None else fmm
     scale = float(np.sqrt(target.area))
     direct = dense_errors(face, bary, target, truth, fmm=fmm) / scale
     errors, branch = direct, "direct"

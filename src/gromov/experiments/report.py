@@ -458,7 +458,7 @@ def _value_text(v, limit: int = 300) -> str:
 def _caption(key: str) -> str:
     """A caption from a figure key, e.g. ``"roc_weld"`` -> ``"ROC, Experiment 1 (welds)"``."""
     kinds = {"roc": "ROC", "mds": "MDS map", "correspondence": "Correspondence",
-             "topkids": "TOPKIDS"}
+             "topkids": "TOPKIDS", "dense": "Interactive dense map"}
     tokens = [t for t in str(key).split("_") if t]
     if not tokens:
         return str(key)
@@ -482,7 +482,7 @@ def _caption(key: str) -> str:
 def _section_of(key: str) -> str:
     head = str(key).split("_", 1)[0]
     return {"roc": "recognition", "mds": "recognition", "correspondence": "correspondence",
-            "topkids": "topkids"}.get(head, "other")
+            "dense": "correspondence", "topkids": "topkids"}.get(head, "other")
 
 
 def _embed(out_dir: Path, key: str, filename) -> str:
@@ -490,6 +490,11 @@ def _embed(out_dir: Path, key: str, filename) -> str:
     if not isinstance(filename, (str, Path)):
         return f'<p class="na">Figure {_esc(caption)}: no file name given.</p>'
     path = out_dir / filename
+    if str(filename).endswith(".html"):   # an interactive page: linked, not embedded
+        if not path.is_file():
+            return f'<p class="na">Page {_esc(caption)}: file {_esc(filename)} not found.</p>'
+        return (f'<p class="page"><a href="{_esc(filename)}">{_esc(caption)}</a>: both shapes to turn '
+                f"and zoom, the reference's colours carried by the dense map.</p>")
     try:
         data = path.read_bytes()
     except OSError:
@@ -769,6 +774,18 @@ def _correspondence(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[
                                 for metric, cond in cols] for c in classes]
             parts.append("<h3>By class</h3>")
             parts.append(_table(header, crow))
+    dense_rows = [(m, _CONDITIONS.get(c, c), f"{d[c]:.2f}", f"{d[c + '_direct']:.2f}",
+                   _fix4(d.get(c + "_per_diameter")))
+                  for m in _ordered(corr, _METRIC_ORDER) if isinstance(d := _get(corr, m, "dense"), Mapping)
+                  for c in _ordered([k for k in d if k in _CONDITIONS], tuple(_CONDITIONS))]
+    if dense_rows:
+        parts.append("<h3>Dense maps</h3><p>Every working vertex of the reference carried to the "
+                     "deformed shape (<code>match(..., dense=True)</code>), scored on the clean shape: "
+                     "mean geodesic error × 100 / √area (the field's unit; the better of the direct "
+                     "and the mirrored reading, and the direct one alone) and ÷ the geodesic "
+                     "diameter (the paper's unit). Not in the paper.</p>")
+        parts.append(_table(("metric", "condition", "mean × 100 / √area", "direct only",
+                             "mean / diameter"), dense_rows))
     parts.append(_figures_html(out_dir, figures, "correspondence"))
     return "\n".join(p for p in parts if p), worse
 
@@ -812,6 +829,20 @@ def _topkids(results: Mapping, figures: Mapping, out_dir: Path) -> str:
                     for key, label, fmt in _TOPKIDS_ROWS
                     if any(_get(tk, m, key) is not None for m in metrics)]
             parts.append(_table(["measure"] + metrics, rows))
+            dense = [(m, tk[m]["dense"]) for m in metrics if isinstance(tk[m].get("dense"), Mapping)]
+            if dense:
+                parts.append("<h3>Dense maps (SHREC'16 protocol)</h3><p>Every vertex of kidXX "
+                             "carried to the reference by <code>match(..., dense=True)</code>, scored "
+                             "on the reference's input mesh: mean geodesic error × 100 / √area per "
+                             "pair, averaged (the better of the direct and the mirrored ground truth, "
+                             "and the direct one alone); the sample images scored the same way; "
+                             "pairs whose mean error exceeds a quarter of the diameter.</p>")
+                parts.append(_table(
+                    ("metric", "dense, mean", "dense, direct only", "median vertex", "mean / diameter",
+                     "samples, mean", "grossly wrong pairs"),
+                    [(m, f"{d['mean']:.2f}", f"{d['mean_direct']:.2f}", f"{d['median']:.2f}",
+                      _fix4(d["per_diameter_mean"]), f"{d['samples_mean']:.2f}", str(d["gross_pairs"]))
+                     for m, d in dense]))
             shapes: list = []
             for m in metrics:
                 ps = tk[m].get("per_shape")

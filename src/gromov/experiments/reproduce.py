@@ -396,6 +396,23 @@ def _pair_quality(result, shapes: _Shapes, x: _Shape, y: _Shape) -> dict:
     return out
 
 
+def _dense_quality(result, shapes: _Shapes, x: _Shape, y: _Shape) -> dict:
+    """A dense map's errors X -> Y on the clean Y (geodesic between image and true vertex, as
+    :func:`_pair_quality`), x 100 / sqrt(area) and / diameter; the better of the direct and the
+    mirrored reading."""
+    wy = shapes.work(y.cls, y.pose)
+    img = result.x_to_y_dense_vertex
+    ids = np.flatnonzero(img >= 0)          # X's vertices (file ids) with an image
+    sym = shapes.mirror[x.cls][ids]
+    geo = shapes.geodesic(y.cls, y.pose)
+    direct = _geodesic_errors(wy, geo, img[ids], ids)
+    mirrored = _geodesic_errors(wy, geo, img[ids], np.where(sym < 0, ids, sym))
+    best = direct if direct.mean() <= mirrored.mean() else mirrored
+    unit = 100.0 / np.sqrt(wy.mesh.area)
+    return {"mean": float(best.mean() * unit), "direct": float(direct.mean() * unit),
+            "per_diameter": float(best.mean() / shapes.diameter(y.cls, y.pose))}
+
+
 def _versions() -> dict:
     from importlib import metadata
 
@@ -487,8 +504,8 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
             "local_scaling_k": k_local,
             "errors_at_eer_local": errors_at(D_local, labels, curve_local.eer_threshold),
             "confusions": [f"{items[i].label}->{nn[i]}" for i in range(len(items)) if nn[i] != labels[i]],
-            "relative": r.relative.round(6).tolist(),
-            "trimmed": r.trimmed.round(6).tolist(),
+            "relative": r.relative.round(9).tolist(),
+            "trimmed": r.trimmed.round(9).tolist(),
             "seconds": round(time.perf_counter() - t, 2),
         }
         for (i, j), res in r.results.items():
@@ -505,6 +522,11 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     plot_roc(curves, out / f, title="ROC, " + ("Experiment 1 (welds)" if name == "weld" else "Experiment 2 (holes)"))
     rec["figures"][f"roc_{name}"] = f
     return rec
+
+
+#: Metrics whose correspondence matches also get dense maps, scored (the default metric: the
+#: map a user gets).
+DENSE_METRICS = ("diffusion",)
 
 
 def _correspondence_pairs(items) -> list[tuple[int, int]]:
@@ -536,7 +558,7 @@ def _correspondence_runs(name: str, entries, shapes: _Shapes, st: Settings, jobs
         results = match_pairs([items[k].mesh for k in used], [(index[i], index[j]) for i, j in pairs],
                               metric, n_samples=st.n_samples, seed=st.seed, resolution=None,
                               metric_options=st.correspondence_options[metric], jobs=jobs,
-                              progress=not quiet)
+                              progress=not quiet, dense=metric in DENSE_METRICS)
         for (i, j), res in zip(pairs, results):
             matches[metric, items[i].label, items[j].label] = res
         timings[f"{name}.{metric}.correspondence_s"] = round(time.perf_counter() - t, 2)
@@ -549,6 +571,7 @@ def _correspondence(matches: dict, shapes: _Shapes, quiet: bool, metrics=METRICS
     out = {}
     for metric in metrics:
         per = {}   # (cls, condition) -> list of (best, direct)
+        dense = {}  # condition -> list of dense-map qualities
         pairs = []
         for (m, xl, yl), res in matches.items():
             if m != metric:
@@ -556,6 +579,10 @@ def _correspondence(matches: dict, shapes: _Shapes, quiet: bool, metrics=METRICS
             x, y = shapes.shapes[xl], shapes.shapes[yl]
             q = _pair_quality(res, shapes, x, y)
             per.setdefault((y.cls, y.kind), []).append(q)
+            if res.has_dense:
+                dq = _dense_quality(res, shapes, x, y)
+                dense.setdefault(y.kind, []).append(dq)
+                q = {**q, "dense": round(dq["mean"], 4)}
             pairs.append({"x": xl, "y": yl, **{k: (round(v, 6) if isinstance(v, float) else v)
                                                 for k, v in q.items()},
                           "relative_distance": round(res.relative_distance, 6)})
@@ -571,6 +598,13 @@ def _correspondence(matches: dict, shapes: _Shapes, quiet: bool, metrics=METRICS
                 entry[f"{kind}_direct"] = float(np.mean([q["direct"] for q in qs]))
                 entry[f"{kind}_mirrored_fraction"] = float(np.mean([q["branch"] == "mirrored" for q in qs]))
                 entry[f"{kind}_pairs"] = len(qs)
+        if dense:
+            entry["dense"] = {"unit": "geodesic error x 100 / sqrt(area) of the clean working mesh; "
+                                      "per_diameter: / its geodesic diameter",
+                              **{f"{kind}{suffix}": float(np.mean([d[key] for d in ds]))
+                                 for kind, ds in dense.items()
+                                 for suffix, key in (("", "mean"), ("_direct", "direct"),
+                                                     ("_per_diameter", "per_diameter"))}}
         out[metric] = entry
         _say(f"  correspondence {metric}: " + ", ".join(
             f"{k} {entry[k]:.4f}" for k in ("clean", "weld", "holes") if k in entry), quiet or not say)
@@ -606,7 +640,70 @@ def _correspondence_figures(matches: dict, shapes: _Shapes, out: Path) -> dict:
     return figures
 
 
+def _dense_pages(matches: dict, shapes: _Shapes, out: Path) -> dict:
+    """One interactive page per class (its first dense map, a weld where there is one): the
+    reference's colours carried to the deformed shape, with plotly.js once beside them."""
+    try:
+        from .view import write_match_html
+    except ImportError:   # pragma: no cover - plotly missing: no pages
+        return {}
+    pages = {}
+    keys = sorted((k for k, r in matches.items() if r.has_dense),
+                  key=lambda k: shapes.shapes[k[2]].kind != "weld")   # welds first, stable
+    for metric, xl, yl in keys:
+        y = shapes.shapes[yl]
+        key = f"dense_{y.cls}"
+        if key in pages:
+            continue
+        x = shapes.shapes[xl]
+        f = f"{key}.html"
+        write_match_html(x.mesh, y.mesh, matches[metric, xl, yl], out / f, titles=(xl, yl),
+                         plotlyjs="directory")
+        pages[key] = f
+    return pages
+
+
 # ----------------------------------------------------------------------------- TOPKIDS
+def _dense_summary(per: dict[str, "DenseError"], samples: dict[str, float]) -> dict:
+    """Means over pairs of a dense map's errors in the field's unit (x 100 / sqrt(area)) and the
+    paper's (/ diameter), the cumulative curve of all vertices, and each pair's mean."""
+    from ..evaluate import DenseError  # noqa: F401 - the type of the values
+
+    errs = list(per.values())
+    allv = np.concatenate([e.errors for e in errs])
+    t = np.linspace(0.0, 0.25, 51)
+    return {
+        "unit": "geodesic error on the input mesh x 100 / sqrt(area); per_diameter: / geodesic diameter",
+        "mean": float(np.mean([e.mean for e in errs]) * 100),
+        "mean_direct": float(np.mean([e.mean_direct for e in errs]) * 100),
+        "median": float(np.median(allv) * 100),
+        "per_diameter_mean": float(np.mean([e.per_diameter().mean() for e in errs])),
+        "gross_pairs": int(sum(e.per_diameter().mean() > 0.25 for e in errs)),
+        "mirrored_pairs": int(sum(e.branch == "mirrored" for e in errs)),
+        "samples_mean": float(np.mean(list(samples.values())) * 100),
+        "per_shape": {k: round(e.mean * 100, 3) for k, e in per.items()},
+        "per_shape_direct": {k: round(e.mean_direct * 100, 3) for k, e in per.items()},
+        "curve": {"thresholds": t.round(4).tolist(),
+                  "fraction": (allv[None, :] <= t[:, None]).mean(axis=1).round(4).tolist()},
+    }
+
+
+def _topkids_dense(kids, names, results, ref_mesh, sym0) -> dict:
+    """Dense maps kidXX -> kid00 scored on kid00's input mesh (the SHREC'16 protocol), the
+    better of the direct and the mirrored ground truth per pair; the samples' images scored
+    the same way beside them."""
+    from ..evaluate import _fast_marching, dense_error
+
+    fmm = _fast_marching(ref_mesh)
+    per, samples = {}, {}
+    for name, r in zip(names, results):
+        gt = kids.ground_truth(name)
+        per[name] = dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, ref_mesh, gt, sym0, fmm=fmm)
+        samples[name] = dense_error(r.x_to_y_face, r.x_to_y_bary, ref_mesh, gt[r.x_samples], sym0,
+                                    fmm=fmm).mean
+    return _dense_summary(per, samples)
+
+
 def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timings: dict) -> dict:
     from scipy.stats import spearmanr
 
@@ -635,7 +732,7 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
                   for m, w in zip(meshes, works)]
         results = match_pairs(shapes, [(i, 0) for i in range(1, len(shapes))], metric,
                               n_samples=st.n_samples, seed=st.seed, resolution=None, jobs=jobs,
-                              progress=not quiet)
+                              progress=not quiet, dense=metric in DENSE_METRICS)
         direct, best, mirrored, rel, trim, abs_err = [], [], [], [], [], []
         for name, r in zip(names, results):
             gt = kids.ground_truth(name)[r.x_samples]
@@ -664,6 +761,13 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
             "relative_distance": {n: round(float(d), 6) for n, d in zip(names, rel)},
             "seconds": round(time.perf_counter() - t, 2),
         }
+        if metric in DENSE_METRICS:
+            t_dense = time.perf_counter()
+            res[metric]["dense"] = _topkids_dense(kids, names, results, meshes[0], sym0)
+            timings[f"topkids.{metric}.dense_eval_s"] = round(time.perf_counter() - t_dense, 2)
+            _say(f"  topkids/{metric} dense map: mean error {res[metric]['dense']['mean']:.2f} x 100 / "
+                 f"sqrt(area) (direct {res[metric]['dense']['mean_direct']:.2f}), samples "
+                 f"{res[metric]['dense']['samples_mean']:.2f}", quiet)
         thr, frac = error_curve(np.concatenate(abs_err), area0)
         curves[metric] = (thr, frac)
         res[metric]["error_curve"] = {"thresholds": thr.round(4).tolist(), "fraction": frac.round(4).tolist()}
@@ -852,6 +956,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     for rec in recognition.values():
         figures.update(rec.pop("figures"))
     figures.update(_correspondence_figures(cmatches, shapes, out))
+    figures.update(_dense_pages(cmatches, shapes, out))
     timings["correspondence_s"] = round(time.perf_counter() - t, 2)
 
     topkids = None
