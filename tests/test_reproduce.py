@@ -62,9 +62,21 @@ def test_quick_run_writes_the_contract(quick_run, capsys):
     for key in ("timings", "versions", "seeds", "params"):
         assert r[key]
     assert r["versions"]["gromov"] and r["params"]["n_samples"] == settings_for("synthetic", True).n_samples
+    pages = [f for f in r["figures"].values() if f.endswith(".html")]
     for f in r["figures"].values():
-        assert (out / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        if f not in pages:
+            assert (out / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # one interactive dense-map page per class of the correspondence pairs, linked from the report,
+    # plotly.js once beside them
+    classes = {label.split("+")[0].rstrip("0123456789") for exp in ("weld", "holes")
+               for label in r["recognition"][exp]["shapes"]}
+    assert sorted(pages) == sorted(f"dense_{c}.html" for c in classes)
+    assert all('src="plotly.min.js"' in (out / f).read_text() for f in pages)
+    assert (out / "plotly.min.js").stat().st_size > 1_000_000
+    dense = r["correspondence"]["diffusion"]["dense"]
+    assert {"clean", "weld", "holes"} <= set(dense) and all(0 <= dense[k] < 100 for k in ("clean", "weld", "holes"))
     html = (out / "index.html").read_text()
+    assert all(f'href="{f}"' in html for f in pages) and "<h3>Dense maps</h3>" in html
     assert "data:image/png;base64," in html and "13.5" in html   # the paper's geodesic EER beside ours
     assert "trimmed distortion" in html and "EER, GH estimate" in html
     assert "heat distance at 0.5 × the diffusion time" in html   # what the diffusion ranking measures

@@ -776,7 +776,8 @@ def _correspondence(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[
             parts.append(_table(header, crow))
     dense_rows = [(m, _CONDITIONS.get(c, c), f"{d[c]:.2f}", f"{d[c + '_direct']:.2f}",
                    _fix4(d.get(c + "_per_diameter")))
-                  for m in _ordered(corr, _METRIC_ORDER) if isinstance(d := _get(corr, m, "dense"), Mapping)
+                  for m in (_ordered(corr, _METRIC_ORDER) if isinstance(corr, Mapping) else [])
+                  if isinstance(d := _get(corr, m, "dense"), Mapping)
                   for c in _ordered([k for k in d if k in _CONDITIONS], tuple(_CONDITIONS))]
     if dense_rows:
         parts.append("<h3>Dense maps</h3><p>Every working vertex of the reference carried to the "
