@@ -1,0 +1,219 @@
+"""Dense correspondence: ``gromov.match(..., dense=True)`` beside functional maps (pyFM).
+
+Run:  .venv/bin/python benchmarks/bench_dense.py [--data DIR] [--topkids N] [--classes cat,dog,...]
+                                                [--quick] [--json OUT]
+
+The anchor is pyFM (``pip install pyfmaps``, import ``pyFM``) as its quick-start runs it: both
+meshes area-normalised and centred, 200 Laplace-Beltrami eigenpairs, WKS descriptors (every
+second one kept), a 30x30 functional map fitted with the quick-start weights (orientation term
+on), ZoomOut refinement (16 iterations of 5), then the vertex-to-vertex map. pyFM's ``p2p_21``
+maps mesh2's vertices to mesh1, so a map X -> Y is ``FunctionalMapping(Y, X)``'s. The same
+parameters on every pair, no tuning.
+
+Pairs: SHREC'16 TOPKIDS kidXX -> kid00 (XX = 01..25; symmetric ground truth: kid00's symmetry
+file) and, per TOSCA class with a pose 0, pose 0 <-> the next pose, both directions (ground
+truth: the same vertex; symmetric reading: the mirror map of pose 0,
+:func:`gromov.experiments.reproduce.reflection_map`, shared by the class's poses).
+
+Measured per pair, on the target's input mesh with :func:`gromov.evaluate.dense_error`
+(geodesic error by fast marching / sqrt(area), the better of the direct and the mirrored
+ground truth; "direct" counts the direct one only): ours at its 100 samples and dense (every
+vertex of X), pyFM at the same samples and dense. The summary pools the points of all pairs
+(mean and median x100), "/diam" is the mean error divided by the target's geodesic diameter,
+"gross" counts pairs whose mean error per diameter exceeds 0.25. Seconds per pair: the match
+for ours (``gromov.match``, shape preparation included), the whole pyFM pipeline for the
+anchor, evaluation excluded; work on a reference reused by every pair (kid00) is done once for
+both methods and reported apart.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from importlib.metadata import version
+from pathlib import Path
+
+import numpy as np
+
+import gromov
+from gromov.evaluate import _fast_marching, dense_error
+from gromov.experiments import datasets
+from gromov.experiments.reproduce import reflection_map
+from gromov.gh import ShapeMetric
+from gromov.metrics.diffusion import correspondence_options
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import HERE, add_data_argument, write_results  # noqa: E402
+
+#: Class -> the pose matched with pose 0 (the next pose the data README lists).
+TOSCA_PAIRS = {"cat": 1, "dog": 1, "horse": 5, "centaur": 1, "wolf": 1, "david": 1, "michael": 1, "victoria": 1}
+QUICK_CLASSES = ("wolf", "centaur")
+GROSS = 0.25
+#: pyFM's documented quick-start (README of pyfmaps 1.3.1).
+PYFM = {"trimesh": {"area_normalize": True, "center": True},
+        "preprocess": {"descr_type": "WKS", "subsample_step": 2},
+        "fit": {"K": 30, "w_descr": 1e0, "w_lap": 1e-1, "w_dcomm": 1e0, "w_orient": 1e0},
+        "zoomout_refine": {"nit": 16, "step": 5}}
+KINDS = ("ours_samples", "ours_dense", "pyfm_samples", "pyfm_dense")
+
+
+def at_vertices(mesh: gromov.Mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices ``v`` (indices of ``mesh``) as points: a face holding each and the unit
+    barycentric coordinates of its corner. Returns ``face (k,)``, ``bary (k, 3)``."""
+    indptr, face_ids = mesh.vertex_faces
+    v = np.asarray(v, dtype=np.int64)
+    if np.any(indptr[v + 1] == indptr[v]):
+        raise ValueError("a vertex without a face has no barycentric image")
+    f = face_ids[indptr[v]]
+    return f, np.eye(3)[np.argmax(mesh.faces[f] == v[:, None], axis=1)]
+
+
+def pyfm_p2p(x: gromov.Mesh, y, reference=None) -> np.ndarray:
+    """pyFM's quick-start map X -> Y: for each vertex index of ``x``, a vertex index of ``y``.
+    ``reference``: a processed ``TriMesh`` of ``y`` (its spectrum is reused)."""
+    from pyFM.functional import FunctionalMapping
+    from pyFM.mesh import TriMesh
+
+    ty = reference if reference is not None else TriMesh(y.vertices, y.faces, **PYFM["trimesh"])
+    model = FunctionalMapping(ty, TriMesh(x.vertices, x.faces, **PYFM["trimesh"]))  # p2p_21: X -> Y
+    model.preprocess(**PYFM["preprocess"])
+    model.fit(**PYFM["fit"])
+    return model.get_p2p(model.zoomout_refine(**PYFM["zoomout_refine"]))
+
+
+def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None) -> dict:
+    """Match ``x`` -> ``y`` with both methods and measure the four maps.
+
+    ``yref`` is what ``gromov.match`` gets for Y (the mesh or a reused ShapeMetric), ``truth``
+    the true Y file id of each X file id, ``sym`` Y's mirror map (file ids) or None."""
+    t = time.perf_counter()
+    r = gromov.match(x, yref, dense=True)
+    t_ours = time.perf_counter() - t
+    t = time.perf_counter()
+    p2p = y.input_ids[pyfm_p2p(x, y, pyfm_ref)]  # Y file id per X vertex index
+    t_pyfm = time.perf_counter() - t
+    n = len(r.x_to_y_dense_face)  # ours: one entry per X file id
+    on_samples = x.from_input_ids(r.x_samples)
+    maps = {"ours_samples": (r.x_to_y_face, r.x_to_y_bary, truth[r.x_samples]),
+            "ours_dense": (r.x_to_y_dense_face, r.x_to_y_dense_bary, truth[np.arange(n)]),
+            "pyfm_samples": (*at_vertices(y, y.from_input_ids(p2p[on_samples])), truth[r.x_samples]),
+            "pyfm_dense": (*at_vertices(y, y.from_input_ids(p2p)), truth[x.input_ids])}
+    row = {"pair": name, "seconds": {"ours": t_ours, "pyfm": t_pyfm}}
+    t = time.perf_counter()
+    for kind, (face, bary, tru) in maps.items():
+        e = dense_error(face, bary, y, tru, sym, fmm=fmm)
+        row[kind] = {"mean": e.mean, "median": float(np.median(e.errors)), "mean_direct": e.mean_direct,
+                     "median_direct": float(np.median(e.direct)), "per_diameter": float(e.per_diameter().mean()),
+                     "branch": e.branch, "errors": e.errors, "direct": e.direct,
+                     "to_diameter": float(np.sqrt(e.area) / e.diameter)}
+    row["seconds"]["evaluation"] = time.perf_counter() - t
+    print(f"  {name:<16} ours {row['ours_dense']['mean']:.4f} ({t_ours:5.1f} s)   "
+          f"pyFM {row['pyfm_dense']['mean']:.4f} ({t_pyfm:5.1f} s)", flush=True)
+    return row
+
+
+def summarise(title: str, rows: list[dict], has_symmetry: bool) -> dict:
+    """Pool the pairs' points per map kind, print the table and return it (errors x100)."""
+    out = {}
+    for kind in KINDS:
+        err = np.concatenate([r[kind]["errors"] for r in rows])
+        direct = np.concatenate([r[kind]["direct"] for r in rows])
+        per_diam = np.concatenate([r[kind]["errors"] * r[kind]["to_diameter"] for r in rows])
+        who = "ours" if kind.startswith("ours") else "pyfm"
+        out[kind] = {"mean": 100 * err.mean(), "median": 100 * np.median(err),
+                     "mean_direct": 100 * direct.mean(), "median_direct": 100 * np.median(direct),
+                     "per_diameter": float(per_diam.mean()),
+                     "gross": sum(r[kind]["per_diameter"] > GROSS for r in rows),
+                     "seconds_per_pair": float(np.mean([r["seconds"][who] for r in rows]))}
+    out = {k: {m: float(v) if m != "gross" else int(v) for m, v in d.items()} for k, d in out.items()}
+    out["ratio_dense"] = out["pyfm_dense"]["mean"] / out["ours_dense"]["mean"]
+    out["ratio_dense_direct"] = out["pyfm_dense"]["mean_direct"] / out["ours_dense"]["mean_direct"]
+    print(f"\n{title}: {len(rows)} pairs; error x100 / sqrt(area)"
+          + (" (best of direct and mirrored; direct only)" if has_symmetry else ""))
+    print(f"  {'':<22}{'mean':>7}{'median':>8}{'mean d':>8}{'med d':>7}{'/diam':>8}{'gross':>7}{'s/pair':>8}")
+    labels = {"ours_samples": "ours, at samples", "ours_dense": "ours, dense",
+              "pyfm_samples": "pyFM, at our samples", "pyfm_dense": "pyFM, dense"}
+    for kind in KINDS:
+        s = out[kind]
+        print(f"  {labels[kind]:<22}{s['mean']:>7.2f}{s['median']:>8.2f}{s['mean_direct']:>8.2f}"
+              f"{s['median_direct']:>7.2f}{s['per_diameter']:>8.4f}{s['gross']:>4}/{len(rows):<2}"
+              f"{s['seconds_per_pair']:>8.1f}")
+    print(f"  ratio pyFM / ours, mean dense error: {out['ratio_dense']:.2f} "
+          f"(direct only: {out['ratio_dense_direct']:.2f})")
+    return out
+
+
+def _rows_for_json(rows: list[dict]) -> list[dict]:
+    return [{k: ({m: v for m, v in d.items() if m not in ("errors", "direct")} if k in KINDS else d)
+             for k, d in r.items()} for r in rows]
+
+
+def run_topkids(root: Path, n: int) -> dict:
+    """kid01..kidN -> kid00, kid00 prepared once for both methods."""
+    from pyFM.mesh import TriMesh
+
+    kids = datasets.TopKids(root / "topkids")
+    y = kids.load(kids.reference)
+    t = time.perf_counter()
+    sy = ShapeMetric(y, "diffusion", metric_options=correspondence_options("diffusion", None))
+    sy.distances  # the reference's metric, once
+    t_ours = time.perf_counter() - t
+    t = time.perf_counter()
+    ref = TriMesh(y.vertices, y.faces, **PYFM["trimesh"]).process(200)  # preprocess()'s k_process
+    t_pyfm = time.perf_counter() - t
+    fmm, sym = _fast_marching(y), kids.symmetry(kids.reference)
+    print(f"TOPKIDS: {kids.reference} prepared once, ours {t_ours:.1f} s, pyFM {t_pyfm:.1f} s")
+    names = [k for k in kids.names if k != kids.reference][:n]
+    rows = [evaluate_pair(f"{k}->{kids.reference}", kids.load(k), y, sy, kids.ground_truth(k), sym, fmm, ref)
+            for k in names]
+    summary = summarise("TOPKIDS kidXX -> kid00", rows, True)
+    return {"summary": summary, "reference_seconds": {"ours": t_ours, "pyfm": t_pyfm},
+            "pairs": _rows_for_json(rows)}
+
+
+def run_tosca(root: Path, classes: list[str]) -> dict:
+    """Pose 0 <-> the next pose of each class, both directions, from scratch per pair."""
+    tosca = datasets.TOSCA(root / "tosca")
+    rows = []
+    for cls in classes:
+        a, b = 0, TOSCA_PAIRS[cls]
+        meshes = {p: tosca.load(cls, p) for p in (a, b)}
+        sym = reflection_map(meshes[a])  # same vertex numbering in every pose of the class
+        for p, q in ((a, b), (b, a)):
+            x, y = meshes[p], meshes[q]
+            truth = np.arange(int(x.input_ids.max()) + 1)
+            rows.append(evaluate_pair(f"{cls}{p}->{cls}{q}", x, y, y, truth, sym, _fast_marching(y)))
+    summary = summarise("TOSCA pose 0 <-> next pose", rows, True)
+    return {"summary": summary, "classes": classes, "pairs": _rows_for_json(rows)}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_data_argument(ap)
+    ap.add_argument("--topkids", type=int, default=25, help="how many kids (0: none)")
+    ap.add_argument("--classes", default=",".join(TOSCA_PAIRS), help="TOSCA classes ('': none)")
+    ap.add_argument("--quick", action="store_true", help=f"3 kids, classes {','.join(QUICK_CLASSES)}")
+    ap.add_argument("--json", default=str(HERE / "results" / "dense.json"))
+    args = ap.parse_args(argv)
+    classes = list(QUICK_CLASSES) if args.quick else [c for c in args.classes.split(",") if c]
+    unknown = sorted(set(classes) - set(TOSCA_PAIRS))
+    if unknown:
+        ap.error(f"unknown or pose-0-less TOSCA classes {unknown}; choose from {','.join(TOSCA_PAIRS)}")
+    n_kids = 3 if args.quick else args.topkids
+    res = {"gromov": {"version": gromov.__version__, "match": {"metric": "diffusion", "dense": True,
+                                                                "n_samples": 100}},
+           "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS}
+    t0 = time.perf_counter()
+    if n_kids > 0:
+        res["topkids"] = run_topkids(Path(args.data), n_kids)
+    if classes:
+        res["tosca"] = run_tosca(Path(args.data), classes)
+    res["total_seconds"] = time.perf_counter() - t0
+    print(f"\ntotal {res['total_seconds']:.0f} s")
+    write_results(args.json, res)
+    return res
+
+
+if __name__ == "__main__":
+    main()
