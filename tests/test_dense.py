@@ -217,3 +217,23 @@ def test_far_errors_beyond_the_march_budget_come_from_a_coarse_copy(monkeypatch)
     # each end snapped to the nearest coarse vertex: off by about an edge at most
     edge = gromov.simplify(m, 600).mesh.mean_edge_length
     assert np.max(np.abs(approx[far] - exact[far])) < 1.5 * edge
+
+
+def test_zoomout_refinement_keeps_the_permuted_map():
+    x = bumpy_torus()
+    y, perm = permutation_of(x, 8)
+    r = gromov.match(x, y, "diffusion", n_samples=30, resolution=None, dense="zoomout")
+    assert np.mean(r.x_to_y_dense_vertex == np.argsort(perm)) > 0.97
+    assert np.mean(r.y_to_x_dense_vertex == perm) > 0.97
+    with pytest.raises(ValueError, match="dense must be"):
+        gromov.match(x, y, "diffusion", n_samples=30, resolution=None, dense="spectral")
+
+
+def test_zoomout_on_exact_maps_is_a_fixed_point():
+    """The identity map of a shape onto itself is what ZoomOut returns from it."""
+    from gromov.dense import zoomout
+    from gromov.gh import ShapeMetric
+
+    s = ShapeMetric(bumpy_torus(), "diffusion", resolution=None)
+    ids = np.arange(s.mesh.n_vertices)
+    np.testing.assert_array_equal(zoomout(s, s, ids), ids)

@@ -37,13 +37,20 @@ import numpy as np
 from ._project import project_among
 from .resolution import gather
 
-__all__ = ["DenseMap", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS"]
+__all__ = ["DenseMap", "dense_maps", "anchored_map", "landmark_distances", "zoomout", "DENSE_TAU_SCALE",
+           "DENSE_KEEP", "DENSE_ROUNDS", "DENSE_REFINE"]
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
 #: Fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
+#: Refinement of the placed map (:func:`dense_maps`' ``refine``): "zoomout" or None. Off by
+#: default: on TOPKIDS it changes little, and it costs about as much again as the placement
+#: (docs/design/dense.md).
+DENSE_REFINE: str | None = None
+#: ZoomOut refinement: eigenfunctions from, to, step.
+ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,6 +159,56 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     return T.astype(np.int64)
 
 
+def _basis(s, k: int):
+    """``(phi (n, k), mass (n,))``: the first ``k`` Laplace-Beltrami eigenfunctions of the
+    working mesh and its vertex masses, computed once per shape: the heat kernel's own
+    eigenpairs where the metric has them (:math:`\\phi = e^{\\lambda t}\\psi`), else the
+    cotangent Laplacian's."""
+    cached = getattr(s, "_lb_basis", None)
+    if cached is not None and cached[0].shape[1] >= k:
+        return cached[0][:, :k], cached[1]
+    n = s.mesh.n_vertices
+    inner = getattr(s.solver, "inner", s.solver)   # through a hole-filling wrapper
+    if hasattr(inner, "_basis_pairs") and len(inner.eigenvalues if inner.eigenvalues is not None
+                                              else []) >= k:
+        lam, psi = inner._basis_pairs()
+        phi = psi[:n, :k] * np.exp(lam[:k] * inner.t)
+        mass = np.asarray(inner.mass.diagonal())[:n]
+    else:
+        from scipy.sparse.linalg import eigsh
+
+        from .metrics.diffusion import cotan_laplacian
+
+        L, M = cotan_laplacian(s.mesh)
+        lam, phi = eigsh(L, min(k, n - 2), M=M, sigma=-1e-8 / max(s.mesh.area, 1e-300))
+        phi = phi[:, np.argsort(lam)]
+        mass = np.asarray(M.diagonal())
+    s._lb_basis = (np.ascontiguousarray(phi), mass)
+    return s._lb_basis[0][:, :k], mass
+
+
+def zoomout(sx, sy, T: np.ndarray, *, k_start: int = ZOOMOUT_START, k_end: int = ZOOMOUT_END,
+            step: int = ZOOMOUT_STEP) -> np.ndarray:
+    r"""Spectral upsampling of a vertex map X -> Y (ZoomOut; Melzi et al., SIGGRAPH Asia 2019).
+
+    For k from ``k_start`` to ``k_end``: the functional map
+    :math:`C = \Phi_X^\top M_X \Phi_Y[T]` on the first k eigenfunctions, then
+    :math:`T(v) = \arg\min_w \lVert \Phi_X(v) C - \Phi_Y(w) \rVert`.
+    """
+    phx, mx = _basis(sx, k_end)
+    phy, _ = _basis(sy, k_end)
+    k_end = min(k_end, phx.shape[1], phy.shape[1])
+    for k in range(min(k_start, k_end), k_end + 1, step):
+        C = phx[:, :k].T @ (mx[:, None] * phy[T, :k])
+        a = (phx[:, :k] @ C).astype(np.float32)
+        b = phy[:, :k].astype(np.float32)
+        cost = a @ b.T            # nearest row of b: argmin |b|^2 - 2 a.b, by products
+        cost *= -2.0
+        cost += (b * b).sum(1)[None, :]
+        T = np.argmin(cost, axis=1)
+    return np.asarray(T, dtype=np.int64)
+
+
 def _input_images(sx, sy, T: np.ndarray):
     """``(face, bary, vertex)`` on Y's input mesh of every input vertex of X, from the working
     map ``T``: each input vertex's working face corners' images, weighted by its barycentric
@@ -205,7 +262,8 @@ def _by_file_id(s, face, bary, vertex) -> DenseMap:
 
 
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
-               keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS) -> tuple[DenseMap, DenseMap]:
+               keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
+               refine: str | None = DENSE_REFINE) -> tuple[DenseMap, DenseMap]:
     """Dense maps X -> Y and Y -> X from paired landmarks.
 
     Parameters
@@ -217,6 +275,8 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         ``(P, images of Q)``, on Y ``(images of P, Q)``.
     tau_scale, keep, rounds
         :func:`landmark_distances`, :func:`anchored_map`.
+    refine : {"zoomout", None}, default DENSE_REFINE
+        Refine each placed working-level map by :func:`zoomout` (meshes only).
 
     Returns
     -------
@@ -227,5 +287,9 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
     t_xy = anchored_map(ax, ay, keep=keep, rounds=rounds)
     t_yx = anchored_map(ay, ax, keep=keep, rounds=rounds)
+    if refine not in ("zoomout", None):
+        raise ValueError(f"refine must be 'zoomout' or None, got {refine!r}")
+    if refine == "zoomout" and sx.has_faces and sy.has_faces:
+        t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)
     return (_by_file_id(sx, *_input_images(sx, sy, t_xy)),
             _by_file_id(sy, *_input_images(sy, sx, t_yx)))
