@@ -219,10 +219,10 @@ def test_far_errors_beyond_the_march_budget_come_from_a_coarse_copy(monkeypatch)
     assert np.max(np.abs(approx[far] - exact[far])) < 1.5 * edge
 
 
-def test_zoomout_refinement_keeps_the_permuted_map():
+def test_the_placed_map_alone_is_the_permuted_map_too():
     x = bumpy_torus()
     y, perm = permutation_of(x, 8)
-    r = gromov.match(x, y, "diffusion", n_samples=30, resolution=None, dense="zoomout")
+    r = gromov.match(x, y, "diffusion", n_samples=30, resolution=None, dense="placed")
     assert np.mean(r.x_to_y_dense_vertex == np.argsort(perm)) > 0.97
     assert np.mean(r.y_to_x_dense_vertex == perm) > 0.97
     with pytest.raises(ValueError, match="dense must be"):

@@ -302,8 +302,8 @@ def cmd_match(args) -> int:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working {'mesh' if s.has_faces else 'point set'} of {path}")
     dense = bool(args.dense or args.map or args.html)
-    if dense and args.dense == "zoomout":
-        dense = "zoomout"
+    if dense and args.dense == "placed":
+        dense = "placed"
     if args.map:
         _check_folder(args.map, "--map")
     if args.html:
@@ -813,11 +813,11 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
-    q.add_argument("--dense", nargs="?", const="plain", choices=("plain", "zoomout"), default=None,
+    q.add_argument("--dense", nargs="?", const="zoomout", choices=("zoomout", "placed"), default=None,
                    help="also map every vertex: an image on Y for each vertex of X and on X for "
-                        "each vertex of Y (x_to_y_dense_vertex/face/bary and y_to_x_dense_* in --out); "
-                        "'--dense zoomout' refines it spectrally (more precise on nearly isometric "
-                        "pairs, slower)")
+                        "each vertex of Y (x_to_y_dense_vertex/face/bary and y_to_x_dense_* in --out), "
+                        "placed by its distances to the samples and refined by ZoomOut; "
+                        "'--dense placed': without the refinement")
     q.add_argument("--map", default=None, metavar="FILE.txt",
                    help="write the dense X -> Y vertex map: one 1-based vertex id of Y per vertex "
                         "of X, one per line (SHREC's format; implies --dense)")

@@ -45,10 +45,9 @@ DENSE_TAU_SCALE = 0.5
 #: Fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
-#: Refinement of the placed map (:func:`dense_maps`' ``refine``): "zoomout" or None. Off by
-#: default: on TOPKIDS it changes little, and it costs about as much again as the placement
-#: (docs/design/dense.md).
-DENSE_REFINE: str | None = None
+#: Refinement of the placed map (:func:`dense_maps`' ``refine``): "zoomout" or None. ZoomOut
+#: by default: more precise on every pair measured, TOPKIDS and TOSCA (docs/design/dense.md).
+DENSE_REFINE: str | None = "zoomout"
 #: ZoomOut refinement: eigenfunctions from, to, step.
 ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
 

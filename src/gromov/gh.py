@@ -1142,12 +1142,12 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         or of the log ratios of the distances (``"log"``, a multiplicative distortion,
         :func:`gromov.gmds.log_ratio_residuals`). Recognition passes
         :data:`RANK_RESIDUAL` ("log"). Nothing else changes.
-    dense : bool or "zoomout", default False
+    dense : bool, "zoomout" or "placed", default False
         Also compute the dense maps: an image on Y for every input vertex of X and on X for
         every input vertex of Y (``x_to_y_dense_*``, ``y_to_x_dense_*``;
-        :func:`gromov.dense.dense_maps`), placed by their distances to the matched samples;
-        ``"zoomout"``: then refined spectrally (:func:`gromov.dense.zoomout`; more precise on
-        nearly isometric pairs).
+        :func:`gromov.dense.dense_maps`), placed by their distances to the matched samples and
+        refined spectrally (:func:`gromov.dense.zoomout`; True and "zoomout"), or only placed
+        ("placed").
 
     Returns
     -------
@@ -1323,9 +1323,9 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         from .dense import dense_maps
 
         on_x, on_y = ((P, img_q0), (img_p0, Q)) if discrete else ((P, img_q), (img_p, Q))
-        if dense not in (True, "zoomout"):
-            raise ValueError(f"dense must be True, False or 'zoomout', got {dense!r}")
-        mxy, myx = dense_maps(sx, sy, on_x, on_y, refine="zoomout" if dense == "zoomout" else None)
+        if dense not in (True, "zoomout", "placed"):
+            raise ValueError(f"dense must be True, False, 'zoomout' or 'placed', got {dense!r}")
+        mxy, myx = dense_maps(sx, sy, on_x, on_y, refine=None if dense == "placed" else "zoomout")
         extra = {"x_to_y_dense_face": mxy.face, "x_to_y_dense_bary": mxy.bary, "x_to_y_dense_vertex": mxy.vertex,
                  "y_to_x_dense_face": myx.face, "y_to_x_dense_bary": myx.bary, "y_to_x_dense_vertex": myx.vertex,
                  "input_faces": (_file_faces(sx), _file_faces(sy))}
