@@ -56,6 +56,8 @@ PYFM = {"trimesh": {"area_normalize": True, "center": True},
         "fit": {"K": 30, "w_descr": 1e0, "w_lap": 1e-1, "w_dcomm": 1e0, "w_orient": 1e0},
         "zoomout_refine": {"nit": 16, "step": 5}}
 KINDS = ("ours_samples", "ours_dense", "pyfm_samples", "pyfm_dense")
+#: ``gromov.match``'s ``dense``: "zoomout" (the default, as ``dense=True``) or "placed" (``--dense``)
+DENSE = {"mode": "zoomout"}
 
 
 def at_vertices(mesh: gromov.Mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,7 +90,7 @@ def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None) -> dict:
     ``yref`` is what ``gromov.match`` gets for Y (the mesh or a reused ShapeMetric), ``truth``
     the true Y file id of each X file id, ``sym`` Y's mirror map (file ids) or None."""
     t = time.perf_counter()
-    r = gromov.match(x, yref, dense=True)
+    r = gromov.match(x, yref, dense=DENSE["mode"])
     t_ours = time.perf_counter() - t
     t = time.perf_counter()
     p2p = y.input_ids[pyfm_p2p(x, y, pyfm_ref)]  # Y file id per X vertex index
@@ -193,15 +195,18 @@ def main(argv=None):
     add_data_argument(ap)
     ap.add_argument("--topkids", type=int, default=25, help="how many kids (0: none)")
     ap.add_argument("--classes", default=",".join(TOSCA_PAIRS), help="TOSCA classes ('': none)")
+    ap.add_argument("--dense", choices=("zoomout", "placed"), default="zoomout",
+                    help="our dense map: placed and refined by ZoomOut (default), or placed only")
     ap.add_argument("--quick", action="store_true", help=f"3 kids, classes {','.join(QUICK_CLASSES)}")
     ap.add_argument("--json", default=str(HERE / "results" / "dense.json"))
     args = ap.parse_args(argv)
+    DENSE["mode"] = args.dense
     classes = list(QUICK_CLASSES) if args.quick else [c for c in args.classes.split(",") if c]
     unknown = sorted(set(classes) - set(TOSCA_PAIRS))
     if unknown:
         ap.error(f"unknown or pose-0-less TOSCA classes {unknown}; choose from {','.join(TOSCA_PAIRS)}")
     n_kids = 3 if args.quick else args.topkids
-    res = {"gromov": {"version": gromov.__version__, "match": {"metric": "diffusion", "dense": True,
+    res = {"gromov": {"version": gromov.__version__, "match": {"metric": "diffusion", "dense": args.dense,
                                                                 "n_samples": 100}},
            "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS}
     t0 = time.perf_counter()
