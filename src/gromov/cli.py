@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from ._atomic import atomic_path, atomic_savez_compressed
 from .errors import GromovError
 
 __all__ = ["main"]
@@ -266,7 +267,7 @@ def cmd_distances(args) -> int:
     out = Path(args.out)
     if out.parent and not out.parent.exists():
         raise _UserError(f"output folder {out.parent} does not exist")
-    np.savez_compressed(
+    atomic_savez_compressed(
         out, distances=np.asarray(dist, dtype=np.float64), samples=to_input(idx).astype(np.int64),
         working_vertices=idx.astype(np.int64), metric=args.metric,
         options=json.dumps(_metric_options(args)), resolution=target.n_vertices,
@@ -335,9 +336,10 @@ def cmd_match(args) -> int:
               orientation=args.orientation, dense=dense,
               **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
     if args.out:
-        np.savez_compressed(Path(args.out), **r.arrays())
+        atomic_savez_compressed(Path(args.out), **r.arrays())
     if args.map:   # SHREC's exchange format: one 1-based vertex id of Y per vertex of X
-        np.savetxt(args.map, r.x_to_y_dense_vertex + 1, fmt="%d")
+        with atomic_path(args.map) as tmp:
+            np.savetxt(tmp, r.x_to_y_dense_vertex + 1, fmt="%d")
     if args.plot:
         (_plot_dense if dense else _plot_match)(r, shapes, args)
     if args.html:
@@ -513,17 +515,17 @@ def cmd_pairwise(args) -> int:
                        else "relative_distance")
         else:
             nan = float("nan")
-            np.savez_compressed(out, files=np.array(names), distance=r.distance,
-                                relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
-                                labels=np.array(labels if labels is not None else [], dtype=str),
-                                ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
-                                eer=nan if result.get("eer") is None else result["eer"],
-                                eer_local=nan if result.get("eer_local") is None else result["eer_local"],
-                                local_scaling_k=result.get("local_scaling_k") or 0,
-                                metric=args.metric, options=json.dumps(options),
-                                rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
-                                rank_residual=r.rank_residual,
-                                n_samples=args.samples, resolution=args.resolution, seed=args.seed)
+            atomic_savez_compressed(out, files=np.array(names), distance=r.distance,
+                                    relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
+                                    labels=np.array(labels if labels is not None else [], dtype=str),
+                                    ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
+                                    eer=nan if result.get("eer") is None else result["eer"],
+                                    eer_local=nan if result.get("eer_local") is None else result["eer_local"],
+                                    local_scaling_k=result.get("local_scaling_k") or 0,
+                                    metric=args.metric, options=json.dumps(options),
+                                    rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
+                                    rank_residual=r.rank_residual,
+                                    n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
         from .experiments.recognition import plot_mds
 
@@ -563,7 +565,7 @@ def cmd_pairwise(args) -> int:
 def _write_csv(path: Path, names: list[str], matrix: np.ndarray, what: str) -> None:
     import csv
 
-    with open(path, "w", newline="") as fh:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow([what] + names)
         for name, row in zip(names, matrix):
@@ -648,10 +650,10 @@ def cmd_perturb(args) -> int:
     save(p.mesh, out)
     # ground truth: output vertex i is input vertex vertex_map[i] (file numbering)
     sidecar = out.with_name(_stem(out) + ".map.npz")
-    np.savez_compressed(sidecar, vertex_map=shape.input_ids[p.vertex_map].astype(np.int64),
-                        sites=shape.input_ids[p.sites].astype(np.int64), kind=p.kind,
-                        euler_before=p.euler_before, euler_after=p.euler_after,
-                        params=json.dumps(p.params, default=_json_value))
+    atomic_savez_compressed(sidecar, vertex_map=shape.input_ids[p.vertex_map].astype(np.int64),
+                            sites=shape.input_ids[p.sites].astype(np.int64), kind=p.kind,
+                            euler_before=p.euler_before, euler_after=p.euler_after,
+                            params=json.dumps(p.params, default=_json_value))
     print(f"{args.input} -> {out}: {args.kind} x{args.count}, Euler characteristic "
           f"{p.euler_before} -> {p.euler_after}, boundary loops {p.boundary_loops_before} -> "
           f"{p.boundary_loops_after}; ground-truth vertex map in {sidecar}")

@@ -104,6 +104,7 @@ from pathlib import Path
 import numpy as np
 
 from . import mesh as _mesh
+from ._atomic import atomic_path, atomic_write_bytes
 from .errors import GromovWarning, MeshError, MeshFormatError
 from .mesh import Mesh, PointCloud
 
@@ -1152,8 +1153,8 @@ def _write_meshio(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
     mesh = meshio.Mesh(shape.vertices, cells)
     writer = getattr(meshio, fmt.module).write
     if not gz:
-        with _meshio_warnings(meshio, name):
-            writer(name, mesh, **dict(fmt.write_options))
+        with _meshio_warnings(meshio, name), atomic_path(path) as tmp:
+            writer(str(tmp), mesh, **dict(fmt.write_options))
         return
     with tempfile.TemporaryDirectory(prefix="gromov-") as tmp:
         file = Path(tmp) / f"mesh.{ext}"
@@ -1188,7 +1189,7 @@ def _read_bytes(path: Path, gz: bool, *, allow_empty: bool = False) -> bytes:
 def _write_bytes(path: Path, data: bytes, gz: bool) -> None:
     if gz:
         data = gzip.compress(data, compresslevel=6, mtime=0)
-    path.write_bytes(data)
+    atomic_write_bytes(path, data)
 
 
 def _bytes_reader(parse: Callable[[bytes, str], RawShape]) -> Callable[[Path, bool], RawShape]:

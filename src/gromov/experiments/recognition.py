@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._atomic import atomic_path
+
 __all__ = ["ROC", "roc", "equal_error_rate", "errors_at", "local_scaling", "local_roc", "LOCAL_SCALING_K",
            "smallest_class", "mds_map", "plot_roc", "plot_mds"]
 
@@ -517,7 +519,8 @@ def plot_roc(roc_or_dict, path, *, title: str | None = None,
     if title:
         ax.set_title(title)
     path = Path(path)
-    fig.savefig(path, format="png", dpi=dpi)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
     return path
 
 
@@ -604,5 +607,6 @@ def plot_mds(coords, labels, path, *, marked=None, marked_label: str = "marked",
     if title:
         ax.set_title(title)
     path = Path(path)
-    fig.savefig(path, format="png", dpi=dpi)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
     return path

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._atomic import atomic_path, atomic_write_text
 from ..mesh import Mesh
 from .datasets import EXPERIMENT1_CLASSES
 
@@ -307,7 +308,8 @@ def _two_panels(meshes, paints, rot, path, titles, title, dpi) -> Path:
     if title:
         fig.suptitle(title, fontsize=12, y=1.0 - 0.08 / (panel_h + top))
     path = Path(path)
-    fig.savefig(path, format="png", dpi=int(dpi))
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=int(dpi))
     return path
 
 
@@ -1027,7 +1029,7 @@ def write_report(results: Mapping, out_dir, *, figures: Mapping[str, str] | None
         "",
     ])
     path = out / "index.html"
-    path.write_text(page, encoding="utf-8")
+    atomic_write_text(path, page)
     logger.info("report written to %s", path)
     return path
 

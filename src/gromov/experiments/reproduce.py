@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import perturb as _perturb
+from .._atomic import atomic_folder, atomic_write_text
 from ..errors import GromovError
 from ..gh import RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, check_rank_residual, check_rank_tau_scale
 from ..mesh import Mesh
@@ -792,6 +793,22 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
 
 
 # ----------------------------------------------------------------------------- main
+def _check_out(out: Path) -> None:
+    """Refuse an ``out`` that replacing as a whole would lose files of the user's."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out {str(out)!r} exists and is not a folder")
+    if not out.is_dir():
+        return
+    real = out.resolve()
+    if Path.cwd().resolve().is_relative_to(real):
+        raise ValueError(f"out {str(out)!r} holds the current directory; it is replaced as a "
+                         "whole when the run is complete: choose a new folder")
+    if any(real.iterdir()) and not (real / "results.json").is_file():
+        raise ValueError(f"out {str(out)!r} is a folder with files but no results.json, not a "
+                         "previous output; it is replaced as a whole when the run is complete: "
+                         "choose a new or empty folder")
+
+
 def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: int | None = None,
               seed: int = 0, quiet: bool = False, command: str | None = None,
               diffusion: dict | None = None, weld_join: str = "pinch", classes: dict | None = None,
@@ -807,7 +824,13 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         ``../shared/data``. None: the built-in synthetic set
         (:class:`gromov.experiments.synthetic.Synthetic`), no files needed.
     out : str or Path, default "gromov-reproduce"
-        Output directory (created).
+        Output directory (created, with its parents). Everything is written into a hidden
+        sibling folder ``.NAME.XXXXXXXX.tmp`` that takes the place of ``out`` only once
+        complete (:func:`gromov._atomic.atomic_folder`: an atomic exchange on Linux), so an
+        interrupted run leaves the previous complete ``out`` or the new one, never a mixture;
+        an error or Ctrl-C deletes the hidden folder, SIGKILL can leave it behind. An existing
+        ``out`` is replaced as a whole, so it must be empty or a previous output (holding
+        ``results.json``), and must not hold the current directory.
     quick : bool, default False
         A smaller run (see :func:`settings_for`).
     jobs : int, optional
@@ -915,81 +938,83 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     st = replace(st, correspondence_options={m: correspondence_options(m, st.metric_options[m])
                                              for m in METRICS})
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    collection = _collection(dataset, data, pose_stretch)
-    unknown = [c for c in {**st.experiment1, **st.experiment2} if c not in collection.classes]
-    if unknown:
-        raise datasets.DatasetError(f"no class {', '.join(map(repr, unknown))} in {data}; classes: "
-                                    f"{', '.join(collection.classes)}")
-    shapes = _Shapes(collection, st.resolution, weld_join)
-    timings: dict = {}
-    _say(f"gromov reproduce: {dataset}{' (quick)' if quick else ''}, {jobs} job(s), output in {out}", quiet)
+    _check_out(out)
+    final = out
+    with atomic_folder(final) as out:   # everything below writes into a hidden sibling folder
+        collection = _collection(dataset, data, pose_stretch)
+        unknown = [c for c in {**st.experiment1, **st.experiment2} if c not in collection.classes]
+        if unknown:
+            raise datasets.DatasetError(f"no class {', '.join(map(repr, unknown))} in {data}; classes: "
+                                        f"{', '.join(collection.classes)}")
+        shapes = _Shapes(collection, st.resolution, weld_join)
+        timings: dict = {}
+        _say(f"gromov reproduce: {dataset}{' (quick)' if quick else ''}, {jobs} job(s), output in {final}", quiet)
 
-    t = time.perf_counter()
-    exp1 = datasets.experiment1(collection, st.experiment1)
-    exp2 = datasets.experiment2(collection, st.experiment2)
-    for e in exp1 + exp2:
-        shapes.entry(e)
-    shapes.shared = {e.label for e in exp1} & {e.label for e in exp2}
-    timings["shapes_s"] = round(time.perf_counter() - t, 2)
-    _say(f"  {len(exp1)} + {len(exp2)} shapes at {st.resolution or 'full'} resolution "
-         f"({timings['shapes_s']:.0f} s)", quiet)
+        t = time.perf_counter()
+        exp1 = datasets.experiment1(collection, st.experiment1)
+        exp2 = datasets.experiment2(collection, st.experiment2)
+        for e in exp1 + exp2:
+            shapes.entry(e)
+        shapes.shared = {e.label for e in exp1} & {e.label for e in exp2}
+        timings["shapes_s"] = round(time.perf_counter() - t, 2)
+        _say(f"  {len(exp1)} + {len(exp2)} shapes at {st.resolution or 'full'} resolution "
+             f"({timings['shapes_s']:.0f} s)", quiet)
 
-    matches: dict = {}      # the recognition's kept pairs
-    cmatches: dict = {}     # the correspondence pairs with the correspondence's options
-    recognition = {}
-    for name, exp in (("weld", exp1), ("holes", exp2)):
-        recognition[name] = _recognition(name, exp, shapes, st, jobs, out, quiet, timings, matches)
-        _correspondence_runs(name, exp, shapes, st, jobs, quiet, timings, cmatches)
-    t = time.perf_counter()
-    for key, res in matches.items():
-        if not _distinct_correspondence(st, key[0]):
-            cmatches[key] = res
-    correspondence = _correspondence(cmatches, shapes, quiet)
-    distinct = [m for m in METRICS if _distinct_correspondence(st, m)]
-    # the recognition metric's own maps too, for comparison
-    for metric, entry in _correspondence(matches, shapes, quiet, distinct, say=False).items():
-        correspondence[metric]["recognition_metric"] = {
-            k: entry[k] for k in ("clean", "weld", "holes", "clean_direct", "weld_direct", "holes_direct")
-            if k in entry}
-    figures = {}
-    for rec in recognition.values():
-        figures.update(rec.pop("figures"))
-    figures.update(_correspondence_figures(cmatches, shapes, out))
-    figures.update(_dense_pages(cmatches, shapes, out))
-    timings["correspondence_s"] = round(time.perf_counter() - t, 2)
+        matches: dict = {}      # the recognition's kept pairs
+        cmatches: dict = {}     # the correspondence pairs with the correspondence's options
+        recognition = {}
+        for name, exp in (("weld", exp1), ("holes", exp2)):
+            recognition[name] = _recognition(name, exp, shapes, st, jobs, out, quiet, timings, matches)
+            _correspondence_runs(name, exp, shapes, st, jobs, quiet, timings, cmatches)
+        t = time.perf_counter()
+        for key, res in matches.items():
+            if not _distinct_correspondence(st, key[0]):
+                cmatches[key] = res
+        correspondence = _correspondence(cmatches, shapes, quiet)
+        distinct = [m for m in METRICS if _distinct_correspondence(st, m)]
+        # the recognition metric's own maps too, for comparison
+        for metric, entry in _correspondence(matches, shapes, quiet, distinct, say=False).items():
+            correspondence[metric]["recognition_metric"] = {
+                k: entry[k] for k in ("clean", "weld", "holes", "clean_direct", "weld_direct", "holes_direct")
+                if k in entry}
+        figures = {}
+        for rec in recognition.values():
+            figures.update(rec.pop("figures"))
+        figures.update(_correspondence_figures(cmatches, shapes, out))
+        figures.update(_dense_pages(cmatches, shapes, out))
+        timings["correspondence_s"] = round(time.perf_counter() - t, 2)
 
-    topkids = None
-    if data is not None and st.topkids and (data / "topkids").is_dir():
-        topkids = _topkids(data, st, jobs, out, quiet, timings)
-        figures.update(topkids.pop("figures"))
-    timings["total_s"] = round(time.perf_counter() - t_start, 2)
+        topkids = None
+        if data is not None and st.topkids and (data / "topkids").is_dir():
+            topkids = _topkids(data, st, jobs, out, quiet, timings)
+            figures.update(topkids.pop("figures"))
+        timings["total_s"] = round(time.perf_counter() - t_start, 2)
 
-    results = {
-        "dataset": dataset, "data": None if data is None else str(data), "quick": quick,
-        "date": time.strftime("%Y-%m-%d"), "command": command or "gromov reproduce",
-        "seconds_total": timings["total_s"], "jobs": jobs,
-        "eer": {exp: {m: recognition[exp][m]["eer"] for m in METRICS} for exp in recognition},
-        "recognition": recognition,
-        "correspondence": correspondence,
-        "topkids": topkids,
-        "timings": timings,
-        "params": {**st.to_dict(), "weld_count": datasets.WELD_COUNT, "weld_join": weld_join,
-                   "pose_stretch": float(pose_stretch),
-                   "hole_counts": list(datasets.HOLE_COUNTS),
-                   "correspondence_error": "geodesic on the clean working meshes / clean geodesic diameter; "
-                                           "best of direct and mirrored ground truth"},
-        "seeds": {"sampling": seed, "perturbations": {s.label: s.info.get("seed") for s in shapes.shapes.values()
-                                                      if "seed" in s.info}},
-        "versions": _versions(),
-        "figures": figures,
-    }
-    for key in RESULT_KEYS:
-        a, b, c = key.split(".")
-        results[key] = results[a][b].get(c) if a == "correspondence" else results[a][b][c]
-    (out / "results.json").write_text(json.dumps(results, indent=1, default=_json_default))
-    from .report import write_report
+        results = {
+            "dataset": dataset, "data": None if data is None else str(data), "quick": quick,
+            "date": time.strftime("%Y-%m-%d"), "command": command or "gromov reproduce",
+            "seconds_total": timings["total_s"], "jobs": jobs,
+            "eer": {exp: {m: recognition[exp][m]["eer"] for m in METRICS} for exp in recognition},
+            "recognition": recognition,
+            "correspondence": correspondence,
+            "topkids": topkids,
+            "timings": timings,
+            "params": {**st.to_dict(), "weld_count": datasets.WELD_COUNT, "weld_join": weld_join,
+                       "pose_stretch": float(pose_stretch),
+                       "hole_counts": list(datasets.HOLE_COUNTS),
+                       "correspondence_error": "geodesic on the clean working meshes / clean geodesic diameter; "
+                                               "best of direct and mirrored ground truth"},
+            "seeds": {"sampling": seed, "perturbations": {s.label: s.info.get("seed") for s in shapes.shapes.values()
+                                                          if "seed" in s.info}},
+            "versions": _versions(),
+            "figures": figures,
+        }
+        for key in RESULT_KEYS:
+            a, b, c = key.split(".")
+            results[key] = results[a][b].get(c) if a == "correspondence" else results[a][b][c]
+        atomic_write_text(out / "results.json", json.dumps(results, indent=1, default=_json_default))
+        from .report import write_report
 
-    write_report(json.loads((out / "results.json").read_text()), out)
-    _say(f"  wrote {out / 'results.json'} and {out / 'index.html'} ({timings['total_s']:.0f} s)", quiet)
+        write_report(json.loads((out / "results.json").read_text()), out)
+    _say(f"  wrote {final / 'results.json'} and {final / 'index.html'} ({timings['total_s']:.0f} s)", quiet)
     return results
