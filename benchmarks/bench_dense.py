@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 import gromov
-from gromov.evaluate import _fast_marching, dense_error
+from gromov.evaluate import GeodesicReference, dense_error
 from gromov.experiments import datasets
 from gromov.experiments.reproduce import reflection_map
 from gromov.gh import ShapeMetric
@@ -164,7 +164,7 @@ def run_topkids(root: Path, n: int) -> dict:
     t = time.perf_counter()
     ref = TriMesh(y.vertices, y.faces, **PYFM["trimesh"]).process(200)  # preprocess()'s k_process
     t_pyfm = time.perf_counter() - t
-    fmm, sym = _fast_marching(y), kids.symmetry(kids.reference)
+    fmm, sym = GeodesicReference(y), kids.symmetry(kids.reference)
     print(f"TOPKIDS: {kids.reference} prepared once, ours {t_ours:.1f} s, pyFM {t_pyfm:.1f} s")
     names = [k for k in kids.names if k != kids.reference][:n]
     rows = [evaluate_pair(f"{k}->{kids.reference}", kids.load(k), y, sy, kids.ground_truth(k), sym, fmm, ref)
@@ -185,7 +185,7 @@ def run_tosca(root: Path, classes: list[str]) -> dict:
         for p, q in ((a, b), (b, a)):
             x, y = meshes[p], meshes[q]
             truth = np.arange(int(x.input_ids.max()) + 1)
-            rows.append(evaluate_pair(f"{cls}{p}->{cls}{q}", x, y, y, truth, sym, _fast_marching(y)))
+            rows.append(evaluate_pair(f"{cls}{p}->{cls}{q}", x, y, y, truth, sym, GeodesicReference(y)))
     summary = summarise("TOSCA pose 0 <-> next pose", rows, True)
     return {"summary": summary, "classes": classes, "pairs": _rows_for_json(rows)}
 

@@ -163,7 +163,7 @@ def _basis(s, k: int):
     working mesh and its vertex masses, computed once per shape: the heat kernel's own
     eigenpairs where the metric has them (:math:`\\phi = e^{\\lambda t}\\psi`), else the
     cotangent Laplacian's."""
-    cached = getattr(s, "_lb_basis", None)
+    cached = s._lb_basis
     if cached is not None and cached[0].shape[1] >= k:
         return cached[0][:, :k], cached[1]
     n = s.mesh.n_vertices
@@ -224,9 +224,7 @@ def _input_images(sx, sy, T: np.ndarray):
         n = len(best)
         return np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), wy.to_input_ids(best)
     pos = np.einsum("kc,kcd->kd", w, sy.mesh.vertices[corners])
-    if sy._owned is None:
-        sy._owned = wy.owned()
-    own_ptr, own_ids = sy._owned
+    own_ptr, own_ids = sy.owned
     # the nearest of the input vertices the three images own (the point lies between them),
     # then the closest point on that vertex's faces
     ptr, ids = gather(own_ptr, own_ids, np.arange(0, corners.size + 1, 3), corners.ravel())

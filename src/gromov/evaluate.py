@@ -149,10 +149,6 @@ class GeodesicReference:
         return D[w.source_nearest[img], w.source_nearest[src]]
 
 
-def _fast_marching(target: Mesh) -> GeodesicReference:
-    return GeodesicReference(target)
-
-
 def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
     r"""Geodesic distance on ``target`` between each image point and its true vertex.
 

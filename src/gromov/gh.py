@@ -144,6 +144,7 @@ class ShapeMetric:
         self._diameter: float | None = None
         self._finite: bool | None = None
         self._owned = None
+        self._lb_basis = None   # Laplace-Beltrami eigenpairs of the working mesh (gromov.dense)
         self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
         self._symmetry: dict = {}
@@ -277,6 +278,14 @@ class ShapeMetric:
         initial search of :func:`match` runs on (``coarse_stages``, ``search_vertices``)."""
         return self.samples(min(int(k), self.mesh.n_vertices), 0)
 
+    @property
+    def owned(self) -> tuple[np.ndarray, np.ndarray]:
+        """CSR ``(indptr, input vertices)`` each working vertex owns
+        (:meth:`WorkingMesh.owned`), computed once per shape."""
+        if self._owned is None:
+            self._owned = self.working.owned()
+        return self._owned
+
     def locate(self, pts: SurfacePoints):
         """Carry points on the working mesh to the input mesh: (face, bary, nearest vertex) there.
 
@@ -297,9 +306,7 @@ class ShapeMetric:
             face, bary = np.asarray(pts.face, dtype=np.int64), np.asarray(pts.bary, dtype=np.float64)
         else:
             pos = pts.positions(self.mesh.vertices, self.mesh.faces)
-            if self._owned is None:  # per shape, not per match
-                self._owned = self.working.owned()
-            own_ptr, own_ids = self._owned
+            own_ptr, own_ids = self.owned
             corners = self.mesh.faces[np.asarray(pts.face, dtype=np.int64)]   # (p, 3)
             ring_ptr, ring = ring_candidates(self.mesh, corners.ravel())   # 3 rings per point
             face, bary, _ = project_among(pos, self.input, *gather(own_ptr, own_ids, ring_ptr[::3], ring))

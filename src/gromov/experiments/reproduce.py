@@ -693,9 +693,9 @@ def _topkids_dense(kids, names, results, ref_mesh, sym0) -> dict:
     """Dense maps kidXX -> kid00 scored on kid00's input mesh (the SHREC'16 protocol), the
     better of the direct and the mirrored ground truth per pair; the samples' images scored
     the same way beside them."""
-    from ..evaluate import _fast_marching, dense_error
+    from ..evaluate import GeodesicReference, dense_error
 
-    fmm = _fast_marching(ref_mesh)
+    fmm = GeodesicReference(ref_mesh)
     per, samples = {}, {}
     for name, r in zip(names, results):
         gt = kids.ground_truth(name)
