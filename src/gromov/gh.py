@@ -458,7 +458,7 @@ class MatchResult:
         ``method="nearest"``: each vertex of the target takes the value at the vertex nearest
         to its image, :math:`g(y) = f(v(T(y)))` -- for labels, segmentations and other values
         that must not be mixed. ``"barycentric"``: the value interpolated at the image,
-        :math:`g(y) = \sum_c eta_c f(c)` over the corners of the image's face -- for smooth
+        :math:`g(y) = \sum_c \beta_c f(c)` over the corners of the image's face -- for smooth
         functions. A map carries functions backwards: values on X reach Y through the map
         from Y to X.
 
