@@ -1372,6 +1372,14 @@ def _reliable(dirs, w):
     return dirs[w, 0] if abs(dirs[w, 3]) >= _RELIABLE else np.nan
 
 
+@njit(cache=True)
+def _work_arrays(n):
+    """The work arrays of one march over ``n`` vertices (:func:`_march`) and a one-source
+    array: ``(T, pos, hk, hv, lab, dirs, src)``."""
+    return (np.empty(n), np.empty(n, np.int32), np.empty(n), np.empty(n, np.int32),
+            np.empty(n, np.int32), np.empty((n, 4)), np.empty(1, np.int64))
+
+
 @njit(cache=True, parallel=True)
 def _march_many(tab, sources, out, nchunks, mode):
     """Row ``i`` of ``out`` = march from ``sources[i]``; chunks of sources run in parallel.
@@ -1383,13 +1391,7 @@ def _march_many(tab, sources, out, nchunks, mode):
     n = tab[0].shape[0] - 1
     m = out.shape[1]
     for ch in prange(nchunks):
-        T = np.empty(n)
-        pos = np.empty(n, np.int32)
-        hk = np.empty(n)
-        hv = np.empty(n, np.int32)
-        lab = np.empty(n, np.int32)
-        dirs = np.empty((n, 4))
-        src = np.empty(1, np.int64)
+        T, pos, hk, hv, lab, dirs, src = _work_arrays(n)
         for i in range(ch, k, nchunks):
             src[0] = sources[i]
             _march(tab, src, T, pos, hk, hv, lab, dirs, mode)
@@ -1400,13 +1402,7 @@ def _march_many(tab, sources, out, nchunks, mode):
 def _march_many_serial(tab, sources, out, mode):
     n = tab[0].shape[0] - 1
     m = out.shape[1]
-    T = np.empty(n)
-    pos = np.empty(n, np.int32)
-    hk = np.empty(n)
-    hv = np.empty(n, np.int32)
-    lab = np.empty(n, np.int32)
-    dirs = np.empty((n, 4))
-    src = np.empty(1, np.int64)
+    T, pos, hk, hv, lab, dirs, src = _work_arrays(n)
     for i in range(sources.shape[0]):
         src[0] = sources[i]
         _march(tab, src, T, pos, hk, hv, lab, dirs, mode)
@@ -1420,13 +1416,7 @@ def _march_pairs(tab, sources, targets, limit, out, nchunks, mode):
     k = sources.shape[0]
     n = tab[0].shape[0] - 1
     for ch in prange(nchunks):
-        T = np.empty(n)
-        pos = np.empty(n, np.int32)
-        hk = np.empty(n)
-        hv = np.empty(n, np.int32)
-        lab = np.empty(n, np.int32)
-        dirs = np.empty((n, 4))
-        src = np.empty(1, np.int64)
+        T, pos, hk, hv, lab, dirs, src = _work_arrays(n)
         for i in range(ch, k, nchunks):
             src[0] = sources[i]
             _march(tab, src, T, pos, hk, hv, lab, dirs, mode, limit)
