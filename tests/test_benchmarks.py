@@ -165,3 +165,23 @@ def test_cloud_sampling_benchmark_compares_like_with_like():
     assert r["identical_to_general_loop"] and r["radius_ours"] > 0
     if "radius_fpsample_vanilla" in r:   # fpsample (bench extra): a covering radius near ours
         assert abs(r["radius_fpsample_vanilla"] / r["radius_ours"] - 1) < 0.2
+
+
+def test_readme_dense_tables_are_the_results_files():
+    """The README's dense-map tables hold bench_dense.py's numbers (both results files)."""
+    import json
+
+    readme = (BENCH.parent / "README.md").read_text()
+    ours = json.loads((BENCH / "results" / "dense.json").read_text())
+    placed = json.loads((BENCH / "results" / "dense-placed.json").read_text())
+    for ds in ("topkids", "tosca"):
+        for key, label in (("ours_samples", "ours, at our samples"), ("ours_dense", "**ours, dense**"),
+                           ("pyfm_samples", "pyFM, at our samples"), ("pyfm_dense", "pyFM, dense")):
+            r = ours[ds]["summary"][key]
+            row = (f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
+                   f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
+            assert row in readme, row
+        r = placed[ds]["summary"]["ours_dense"]
+        assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in readme
+    cost = json.loads((BENCH / "results" / "dense_cost.json").read_text())
+    assert f"it adds {cost['added_s']:.2f} s to a" in readme.replace("\n", " ")
