@@ -665,11 +665,9 @@ def _dense_pages(matches: dict, shapes: _Shapes, out: Path) -> dict:
 
 
 # ----------------------------------------------------------------------------- TOPKIDS
-def _dense_summary(per: dict[str, "DenseError"], samples: dict[str, float]) -> dict:
+def _dense_summary(per: dict, samples: dict[str, float]) -> dict:
     """Means over pairs of a dense map's errors in the field's unit (x 100 / sqrt(area)) and the
     paper's (/ diameter), the cumulative curve of all vertices, and each pair's mean."""
-    from ..evaluate import DenseError  # noqa: F401 - the type of the values
-
     errs = list(per.values())
     allv = np.concatenate([e.errors for e in errs])
     t = np.linspace(0.0, 0.25, 51)
