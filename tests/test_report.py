@@ -264,7 +264,7 @@ def test_write_report_missing_sections(tmp_path):
 
 
 def test_write_report_partial_numbers(tmp_path):
-    res = {"eer": {"weld": {"diffusion": 0.04, "geodesic": None}},
+    res = {"dataset": "tosca", "eer": {"weld": {"diffusion": 0.04, "geodesic": None}},
            "correspondence": {"diffusion": {"clean": 0.03}}}
     text = _text(write_report(res, tmp_path).read_text(encoding="utf-8"))
     assert "same as the paper" in text  # 4.0% against 4.0%
@@ -298,3 +298,17 @@ def test_write_report_says_when_the_classes_are_not_the_papers(tmp_path):
     text = _text(write_report(r, tmp_path).read_text())
     assert "Run on wolf, horse, not on the paper's classes (cat, dog, david, victoria)" in text
     assert other_classes({**r, "dataset": "synthetic"}) == []
+
+
+def test_write_report_judges_only_on_the_papers_data(tmp_path):
+    """On the synthetic set (or other TOSCA classes) the paper's column is labelled as its
+    TOSCA numbers and no verdict is made."""
+    r = _results({})
+    judged = _text(write_report(r, tmp_path / "tosca").read_text())
+    assert "better than the paper" in judged and "Worse than the paper in" in judged
+    for other in ({**r, "dataset": "synthetic"},
+                  {**r, "params": {**r["params"], "experiment1": {"wolf": 2, "horse": 4}}}):
+        text = _text(write_report(other, tmp_path / str(id(other))).read_text())
+        assert "paper (its TOSCA numbers)" in text
+        assert not re.search(r"(better|worse) than the paper|same as the paper", text)
+        assert "pp" not in text.split("Correspondence")[0].split("Recognition", 1)[1]

@@ -384,10 +384,11 @@ def _seconds(x) -> str:
     return f"{v:.1f} s" if v >= 1 else f"{v:.3f} s"
 
 
-def _compare(ours, paper, *, unit: float, kind: str) -> tuple[str, str]:
-    """``(ours - paper, verdict)`` for a lower-is-better number; unit = display precision."""
+def _compare(ours, paper, *, unit: float, kind: str, judge: bool = True) -> tuple[str, str]:
+    """``(ours - paper, verdict)`` for a lower-is-better number; unit = display precision.
+    Without ``judge`` (a run on other data than the paper's) there is neither."""
     o, p = _num(ours), _num(paper)
-    if o is None or p is None:
+    if o is None or p is None or not judge:
         return "", ""
     diff = o - p
     if kind == "pct":
@@ -558,6 +559,16 @@ def other_classes(results: Mapping) -> list[str]:
     return list(classes) if set(classes) != set(PAPER_CLASSES) else []
 
 
+def on_papers_data(results: Mapping) -> bool:
+    """Whether a run is on the paper's data (TOSCA, the paper's classes): only then are our
+    numbers judged against the paper's; elsewhere its numbers are a reference point."""
+    return results.get("dataset") == "tosca" and not other_classes(results)
+
+
+def _paper_label(results: Mapping) -> str:
+    return "paper" if on_papers_data(results) else "paper (its TOSCA numbers)"
+
+
 def _eer_of(results: Mapping, exp: str, metric: str):
     v = _get(results, "eer", exp, metric)
     return v if v is not None else _get(results, "recognition", exp, metric, "eer")
@@ -578,7 +589,7 @@ def _recognition_rows(results: Mapping) -> tuple[list, list[str]]:
         for metric in _ordered(metrics, _METRIC_ORDER):
             ours = _eer_of(results, exp, metric)
             paper = _get(PAPER, "eer", exp, metric)
-            diff, verdict = _compare(ours, paper, unit=0.001, kind="pct")
+            diff, verdict = _compare(ours, paper, unit=0.001, kind="pct", judge=on_papers_data(results))
             nn = _get(results, "recognition", exp, metric, "nn_accuracy")
             name = _EXPERIMENTS.get(exp, exp)
             ranked = _get(results, "recognition", exp, metric, "ranked_by")
@@ -682,7 +693,7 @@ def _recognition(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[str
                      "Nearest-neighbour accuracy: leave-one-out classification by the "
                      "closest other shape (not reported in the paper).</p>")
         parts.append(_recognition_sets(results))
-        head = ("experiment", "metric", "EER ours", "EER paper", "ours − paper", "verdict",
+        head = ("experiment", "metric", "EER ours", f"EER {_paper_label(results)}", "ours − paper", "verdict",
                 "nearest-neighbour accuracy")
         ks = {_get(results, "recognition", exp, m, "local_scaling_k")
               for exp in _EXPERIMENTS for m in _METRIC_ORDER} - {None}
@@ -738,7 +749,7 @@ def _correspondence(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[
                 pcond = _PAPER_CONDITION.get(cond)
                 paper = _get(PAPER, "correspondence", metric, pcond) if pcond else None
                 ref = cat if _num(cat) is not None else ours
-                diff, verdict = _compare(ref, paper, unit=1e-4, kind="fix")
+                diff, verdict = _compare(ref, paper, unit=1e-4, kind="fix", judge=on_papers_data(results))
                 rows.append((metric, _CONDITIONS.get(cond, cond), _fix4(ours),
                              _fix4(direct) if _num(direct) is not None else "",
                              _fix4(cat) if cat is not None else "",
@@ -750,12 +761,12 @@ def _correspondence(results: Mapping, figures: Mapping, out_dir: Path) -> tuple[
                                  f"{_fix4(paper)} ({diff})")
         parts.append(_table(("metric", "condition", "ours, all classes", "ours, direct only",
                              "ours, cats",
-                             "paper, cats", "ours − paper", "verdict"), rows))
+                             f"{_paper_label(results)}, cats", "ours − paper", "verdict"), rows))
         own = [m for m in metrics if isinstance(corr[m].get("recognition_metric"), Mapping)]
         if own:
             parts.append(
                 "<p>The correspondence of " + ", ".join(_esc(m) for m in own) + " is computed with "
-                "its own metric options, not the recognition's (README, “Choices worth knowing”): "
+                "its own metric options, not the recognition's (docs/design/metrics.md, “Heat units”): "
                 + "; ".join(f"{_esc(m)}: {_esc(_get(results, 'params', 'correspondence_options', m))} "
                             f"(recognition: {_esc(_get(results, 'params', 'metric_options', m))})"
                             for m in own)
@@ -988,7 +999,7 @@ def write_report(results: Mapping, out_dir, *, figures: Mapping[str, str] | None
     correspondence, worse_c = _correspondence(results, figures, out)
     n_compared = (sum(1 for exp in PAPER["eer"] for m in PAPER["eer"][exp]
                       if _num(_eer_of(results, exp, m)) is not None)
-                  + _n_corr_compared(results))
+                  + _n_corr_compared(results)) if on_papers_data(results) else 0
     other = _figures_html(out, figures, "other")
     versions = results.get("versions")
     gromov_version = _get(results, "versions", "gromov")
