@@ -269,3 +269,50 @@ def test_cli_weld_join(tmp_path, capsys):
         z = np.load(tmp_path / f"welded-{join}.map.npz")
         params = json.loads(str(z["params"]))
         assert params["join"] == (join or "tube") and len(params["gaps"]) == 2
+
+
+def test_weld_sites_searched_on_a_coarse_copy_are_glued_on_the_mesh(tmp_path, capsys):
+    """Above ``resolution`` vertices the sites come from a simplified copy; the weld is made on
+    the mesh itself at its own vertices, with the same guarantees."""
+    sheet = hairpin(121, 21)
+    p = weld(sheet, 2, seed=1, resolution=600)
+    assert p.params["search_vertices"] <= 620 < sheet.n_vertices
+    assert p.mesh.n_vertices == sheet.n_vertices - 4        # full resolution, u and v removed
+    check_ground_truth(p, sheet)
+    check_oriented_manifold(p.mesh)
+    assert p.euler_after == sheet.euler_characteristic - 4
+    X = sheet.vertices
+    for u, v in p.sites:   # each site joins the two layers, far apart along the surface
+        assert abs(X[u, 2] - X[v, 2]) == pytest.approx(2 * RHO)
+        assert graph_distance(sheet, u, v) > 4 * np.linalg.norm(X[u] - X[v])
+    full = weld(sheet, 2, seed=1, resolution=None)
+    assert full.params["search_vertices"] == sheet.n_vertices and full.mesh.n_vertices == p.mesh.n_vertices
+
+
+def test_weld_default_radius_grows_until_the_sites_fit():
+    sheet = hairpin(61, 11, rho=0.45)       # layers 0.9 apart: more than 5 edges (0.1 each)
+    p = weld(sheet, 1, seed=0)
+    assert p.params["radius"] > 5 * sheet.mean_edge_length
+    with pytest.raises(ValueError, match=r"radius up to [\d.]+ \(25.3 mean edge lengths\)"):
+        weld(sheet, 40, seed=0)
+    with pytest.raises(ValueError, match="found only 0 separated weld site"):
+        weld(sheet, 1, seed=0, radius=5 * sheet.mean_edge_length)   # a given radius is kept
+
+
+def test_cli_weld_options(tmp_path, capsys):
+    import gromov
+    from gromov.cli import main
+
+    src = tmp_path / "hairpin.off"
+    gromov.save(hairpin(121, 21), src)
+    out = tmp_path / "w.off"
+    assert main(["perturb", "weld", str(src), str(out), "--count", "2", "--resolution", "600",
+                 "--min-geodesic-ratio", "3", "--separation", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert "weld x2 on 2541 vertices (sites searched on a 600-vertex copy)" in err
+    params = json.loads(str(np.load(tmp_path / "w.map.npz")["params"]))
+    assert (params["resolution"], params["min_geodesic_ratio"], params["separation"]) == (600, 3.0, 0.5)
+    assert main(["perturb", "holes", str(src), str(out), "--count", "1", "--separation", "1"]) == 2
+    assert "--separation applies to weld, not to holes" in capsys.readouterr().err
+    assert main(["perturb", "weld", str(src), str(out), "--count", "1", "-q"]) == 0
+    assert capsys.readouterr().err == ""

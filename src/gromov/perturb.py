@@ -35,11 +35,18 @@ from scipy.sparse.csgraph import dijkstra
 
 from .mesh import Mesh
 
-__all__ = ["Perturbation", "weld", "holes", "WELD_JOINS"]
+__all__ = ["Perturbation", "weld", "holes", "WELD_JOINS", "WELD_RESOLUTION"]
 
 logger = logging.getLogger(__name__)
 
 WELD_JOINS = ("tube", "pinch")
+#: :func:`weld` searches its sites on a copy of at most this many vertices: the candidate
+#: pairs of a 28k-vertex TOSCA cat at 5 edge lengths take minutes and gigabytes on the mesh
+#: itself, about a second on the copy (docs/design/perturbations.md).
+WELD_RESOLUTION = 3000
+#: :func:`weld`'s default radius: this many mean edge lengths, grown by the factor up to
+#: ``WELD_RADIUS_TRIES`` times while too few sites are found.
+WELD_RADIUS_EDGES, WELD_RADIUS_GROWTH, WELD_RADIUS_TRIES = 5.0, 1.5, 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,7 +282,8 @@ def _bridge(p: np.ndarray, q: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
          min_geodesic_ratio: float = 4.0, min_geodesic_fraction: float = 0.1,
-         separation: float | None = None, join: str = "tube") -> Perturbation:
+         separation: float | None = None, join: str = "tube",
+         resolution: int | None = WELD_RESOLUTION) -> Perturbation:
     """Glue the surface to itself at ``count`` places where two parts nearly touch.
 
     Point-wise topology changes of Bronstein et al. (IJCV 2010, §5, Fig. 2): where two
@@ -323,8 +331,11 @@ def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
     count : int
         Number of welds, ``>= 1``.
     radius : float, optional
-        Euclidean search radius ``r``. Default ``5 * mesh.mean_edge_length``: pairs closer
-        than a few edges, i.e. surfaces that touch at the mesh's resolution.
+        Euclidean search radius ``r``. Default: :data:`WELD_RADIUS_EDGES` (5) mean edge
+        lengths of the mesh the sites are searched on -- surfaces that touch at its
+        resolution -- grown :data:`WELD_RADIUS_GROWTH` (1.5) times at a time, up to
+        :data:`WELD_RADIUS_TRIES` (4) times, until ``count`` sites are found (``params``
+        records the radius used).
     seed : int, Generator or None, default 0
         Order in which candidates are drawn.
     min_geodesic_ratio : float, default 4.0
@@ -335,6 +346,12 @@ def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
         Minimum edge-graph distance between the vertices of different sites. Default
         ``radius / 2``.
     join : {"tube", "pinch"}, default "tube"
+    resolution : int or None, default WELD_RESOLUTION
+        On a mesh of more vertices, the sites are searched on a copy simplified to this many
+        vertices (:func:`gromov.resolution.simplify`, which keeps a subset of the vertices:
+        each site is a pair of the mesh's own vertices), and glued on the mesh itself. The
+        distances that choose the sites (``radius``, ``separation``, the geodesic test) are
+        then measured on that copy. ``None``: search the mesh itself.
 
     Returns
     -------
@@ -361,31 +378,27 @@ def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
     count = _check_count(count)
     if join not in WELD_JOINS:
         raise ValueError(f"join must be one of {WELD_JOINS}, got {join!r}")
-    r = 5.0 * mesh.mean_edge_length if radius is None else _check_positive(radius, "radius")
+    given = None if radius is None else _check_positive(radius, "radius")
     ratio = _check_positive(min_geodesic_ratio, "min_geodesic_ratio", minimum=1.0, strict=False)
     frac = _check_positive(min_geodesic_fraction, "min_geodesic_fraction", strict=False)
-    sep = r / 2 if separation is None else _check_positive(separation, "separation", strict=False)
+    sep_given = None if separation is None else _check_positive(separation, "separation", strict=False)
+    if resolution is not None:
+        resolution = _check_count(resolution)
 
-    from scipy.spatial import cKDTree
+    search, ids = mesh, np.arange(mesh.n_vertices)
+    if resolution is not None and mesh.n_vertices > resolution:
+        from .resolution import simplify
 
-    X, n = mesh.vertices, mesh.n_vertices
-    diam = _diameter(mesh)
+        work = simplify(mesh, resolution)
+        search, ids = work.mesh, work.vertex_ids
+    edge = search.mean_edge_length
+    radii = ([given] if given is not None else
+             [WELD_RADIUS_EDGES * edge * WELD_RADIUS_GROWTH ** i for i in range(WELD_RADIUS_TRIES + 1)])
+    diam = _diameter(search)
     g_min = frac * diam
 
-    # 1. close in space, far along the surface
-    ref = np.flatnonzero(mesh.referenced)
-    pairs = ref[cKDTree(X[ref]).query_pairs(r, output_type="ndarray")]
-    pairs.sort(axis=1)
-    gap = np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1)
-    far = _far_pairs(mesh, pairs, np.maximum(ratio * gap, g_min))
-    pairs, gap = pairs[far], gap[far]
-
-    logger.info("weld: %d candidate pairs (radius %.4g, geodesic > max(%.3g x gap, %.4g))",
-                len(pairs), r, ratio, g_min)
-
-    # 2. sites drawn at random among candidates separated from the sites so far; a site
-    #    needs both ends interior with a disk star, 1-rings disjoint and not adjacent
-    #    (checked lazily, only for the pairs drawn)
+    # a site needs both ends interior with a disk star, 1-rings disjoint and not adjacent, on
+    # the mesh that is glued (checked lazily, only for the pairs drawn)
     A = mesh.adjacency
     cycles: dict[int, np.ndarray | None] = {}
 
@@ -395,16 +408,63 @@ def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
         return cycles[w]
 
     def usable(u: int, v: int) -> bool:
+        u, v = int(ids[u]), int(ids[v])
         cu, cv = cycle(u), cycle(v)
         if cu is None or cv is None:
             return False
         ru, rv = np.append(cu, u), np.append(cv, v)
         return not np.intersect1d(ru, rv).size and A[ru][:, rv].nnz == 0
 
+    rng = _rng(seed)
+    for r in radii:
+        sep = r / 2 if sep_given is None else sep_given
+        sites, n_candidates = _weld_sites(search, count, r, ratio, g_min, sep, rng, usable)
+        if len(sites) == count:
+            break
+    if len(sites) < count:
+        tried = f"radius={r:.4g}" if given is not None else (
+            f"radius up to {r:.4g} ({r / edge:.3g} mean edge lengths)")
+        raise ValueError(
+            f"found only {len(sites)} separated weld site(s) for count={count} "
+            f"({n_candidates} candidate vertex pairs closer than {tried} in space and farther "
+            f"than max({ratio:g} x gap, {g_min:.4g}) along the surface, separation {sep:.4g}); "
+            "lower the count, raise the radius, or lower the geodesic ratio or the separation")
+    site_arr = ids[np.asarray(sites, dtype=np.int64)]
+    out, keep_ids = _glue(mesh, site_arr, [(cycle(u), cycle(v)) for u, v in site_arr], join)
+    X = mesh.vertices
+    params = {"count": count, "radius": r, "seed": _seed_param(seed),
+              "min_geodesic_ratio": ratio, "min_geodesic_fraction": frac, "min_geodesic": g_min,
+              "separation": sep, "join": join, "diameter": diam, "n_candidates": int(n_candidates),
+              "resolution": resolution, "search_vertices": search.n_vertices,
+              "gaps": np.linalg.norm(X[site_arr[:, 0]] - X[site_arr[:, 1]], axis=1)}
+    res = _result(mesh, out, keep_ids, "weld", site_arr, params)
+    logger.info("weld: %d %s weld(s), Euler characteristic %d -> %d", count, join,
+                res.euler_before, res.euler_after)
+    return res
+
+
+def _weld_sites(mesh: Mesh, count: int, r: float, ratio: float, g_min: float, sep: float,
+                rng: np.random.Generator, usable) -> tuple[list[tuple[int, int]], int]:
+    """Up to ``count`` weld sites of ``mesh`` (:func:`weld`'s candidates and sites) and the
+    number of candidate pairs. ``usable(u, v)``: whether a drawn pair can be glued."""
+    from scipy.spatial import cKDTree
+
+    X, n = mesh.vertices, mesh.n_vertices
+    # 1. close in space, far along the surface
+    ref = np.flatnonzero(mesh.referenced)
+    pairs = ref[cKDTree(X[ref]).query_pairs(r, output_type="ndarray")]
+    pairs.sort(axis=1)
+    gap = np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1)
+    pairs = pairs[_far_pairs(mesh, pairs, np.maximum(ratio * gap, g_min))]
+    logger.info("weld: %d candidate pairs (radius %.4g, geodesic > max(%.3g x gap, %.4g))",
+                len(pairs), r, ratio, g_min)
+
+    # 2. sites drawn at random among candidates separated from the sites so far
+    A = mesh.adjacency
     sites: list[tuple[int, int]] = []
     blocked = np.zeros(n, bool)          # 2-rings of chosen vertices: closed 1-rings would overlap
     d_sites = np.full(n, np.inf)         # edge-graph distance to the nearest welded vertex
-    for k in _rng(seed).permutation(len(pairs)):
+    for k in rng.permutation(len(pairs)):
         u, v = int(pairs[k, 0]), int(pairs[k, 1])
         if blocked[u] or blocked[v] or min(d_sites[u], d_sites[v]) < sep or not usable(u, v):
             continue
@@ -414,20 +474,17 @@ def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
         d_sites = np.minimum(d_sites, dijkstra(A, directed=False, indices=[u, v], min_only=True))
         hop = dijkstra(A, directed=False, unweighted=True, indices=[u, v], limit=2, min_only=True)
         blocked |= np.isfinite(hop)
-    if len(sites) < count:
-        raise ValueError(
-            f"found only {len(sites)} separated weld site(s) for count={count} "
-            f"({len(pairs)} candidate vertex pairs closer than radius={r:.4g} in space and farther "
-            f"than max({ratio:g} x gap, {g_min:.4g}) along the surface, separation {sep:.4g}); "
-            "lower count, raise radius, or lower min_geodesic_ratio / separation")
-    site_arr = np.asarray(sites, dtype=np.int64)
+    return sites, len(pairs)
 
-    # 3. glue
-    F = mesh.faces
+
+def _glue(mesh: Mesh, site_arr: np.ndarray, rings, join: str) -> tuple[Mesh, np.ndarray]:
+    """Weld the pairs ``site_arr`` (K, 2) of ``mesh`` (their link cycles ``rings``): the
+    welded mesh and the input index of each of its vertices."""
+    X, F, n = mesh.vertices, mesh.faces, mesh.n_vertices
     if join == "tube":
         gone = site_arr.ravel()
         star = np.isin(F, gone).any(axis=1)
-        band = [_bridge(cycles[u], cycles[v][::-1], X) for u, v in sites]
+        band = [_bridge(cu, cv[::-1], X) for cu, cv in rings]
         new_faces = np.concatenate([F[~star]] + band)
     else:
         gone = site_arr[:, 1]
@@ -439,15 +496,7 @@ def weld(mesh: Mesh, count: int, *, radius: float | None = None, seed=0,
     new_index = np.full(n, -1, dtype=np.int64)
     new_index[keep] = np.arange(int(keep.sum()))
     keep_ids = np.flatnonzero(keep)
-    out = Mesh(X[keep], new_index[new_faces], input_ids=mesh.input_ids[keep])
-    params = {"count": count, "radius": r, "seed": _seed_param(seed),
-              "min_geodesic_ratio": ratio, "min_geodesic_fraction": frac, "min_geodesic": g_min,
-              "separation": sep, "join": join, "diameter": diam, "n_candidates": int(len(pairs)),
-              "gaps": np.linalg.norm(X[site_arr[:, 0]] - X[site_arr[:, 1]], axis=1)}
-    res = _result(mesh, out, keep_ids, "weld", site_arr, params)
-    logger.info("weld: %d %s weld(s), Euler characteristic %d -> %d", count, join,
-                res.euler_before, res.euler_after)
-    return res
+    return Mesh(X[keep], new_index[new_faces], input_ids=mesh.input_ids[keep]), keep_ids
 
 
 # ---------------------------------------------------------------------------- holes

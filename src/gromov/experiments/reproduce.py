@@ -248,7 +248,7 @@ def _weld(work: Mesh, count: int, seed: int, join: str = "pinch"):
             for _ in range(5):
                 try:
                     p = _perturb.weld(work, k, radius=radius, seed=seed, min_geodesic_ratio=ratio,
-                                     join=join)
+                                     join=join, resolution=None)
                 except ValueError:
                     radius *= 1.5
                     continue
@@ -868,12 +868,12 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
     rank_tau_scale : float or None, default RANK_TAU_SCALE (0.5)
         The trimmed distortion of a heat-kernel diffusion correspondence is measured with the
         heat distance at this times the diffusion time (:func:`gromov.match`'s
-        ``rank_tau_scale``); None: in the metric of the match (as before session 16). The
+        ``rank_tau_scale``); None: in the metric of the match (the same scale). The
         correspondences, GH estimates and d(C, C0) do not depend on it. Recorded in ``params``.
     rank_residual : {"log", "difference"}, default RANK_RESIDUAL ("log")
         The trimmed distortion summarises the log ratios of corresponding distances (a
-        multiplicative distortion, :func:`gromov.gmds.log_ratio_residuals`) or, as before
-        session 17, their differences over the larger diameter (:func:`gromov.match`'s
+        multiplicative distortion, :func:`gromov.gmds.log_ratio_residuals`) or, in the
+        additive form, their differences over the larger diameter (:func:`gromov.match`'s
         ``rank_residual``). Like ``rank_tau_scale`` it changes only the ranking. Recorded in
         ``params``.
     pose_stretch : float, default 0
