@@ -13,8 +13,8 @@ the same welds). For each blend, the GH matrices of the heat-kernel diffusion me
 heat distances and with normalised heat distributions are computed (``gh_matrix``), and
 pairs are ranked by each and by their elementwise geometric mean (the trimmed distortions
 measured at ``--rank-tau-scale`` times each metric's diffusion time, as ``gh_matrix`` does by
-default since session 16; ``--rank-tau-scale 1`` for the match's own metric, as before; of the
-log distance ratios as since session 17, ``--rank-residual difference`` for their differences).
+default; ``--rank-tau-scale 1`` for the match's own metric; of the log distance ratios, as
+``gh_matrix`` does by default; ``--rank-residual difference`` for their differences).
 ``--stretch`` builds the people with non-isometric poses (``Synthetic(pose_stretch=...)``), as
 TOSCA's are. Printed per ranking: the
 equal error rate and the *margin* (smallest different-class over largest same-class distance;

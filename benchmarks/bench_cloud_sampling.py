@@ -10,7 +10,7 @@ Timed on random normal clouds, one run each after a warm-up (numba compiled and 
 
 - ``ours``: the fused numba pass per sample (in numba threads from 50,000 points);
 - ``ours, general loop``: the same algorithm through the solver's rows (numpy; what every
-  other metric uses, and what clouds used before session 20) -- the same samples to the bit;
+  other metric uses) -- the same samples to the bit;
 - ``fpsample`` (anchor; Rust/C++, single-threaded, float32): its vanilla FPS and its
   bucket-based QuickFPS (``bucket_fps_kdline_sampling``, h = 7; Han et al., IEEE TCAD 2023).
   Both compute in float32, so their samples differ from ours (float64) on large clouds; the

@@ -12,8 +12,8 @@ Run:  .venv/bin/python benchmarks/bench_match.py [--data DIR] [--json OUT]
    image and of the ground truth. TOSCA reference poses are mirror-symmetric; the mirror map
    (reflection through the bounding box's symmetry plane, nearest vertex) gives the error of
    the left/right-swapped reading too, and "best" takes the better of the two per match.
-   The metrics have the options `gromov.match` gives a correspondence (session 15: the
-   normalised heat distributions for diffusion, `correspondence_options`).
+   The metrics have the options `gromov.match` gives a correspondence (the normalised heat
+   distributions for diffusion, `correspondence_options`).
 2. Speed with metrics precomputed: one symmetric GMDS match of 100 samples per side
    (`gromov.match` on prepared shapes: initialisation, GMDS, mapping to the input meshes;
    also with ``search_vertices=500``) vs POT's `ot.gromov.gromov_wasserstein` on the same two

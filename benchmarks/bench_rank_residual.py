@@ -7,10 +7,10 @@ Recognition (:func:`gromov.experiments.gh_matrix`, ``gromov reproduce``) ranks a
 by a trimmed distortion of their correspondence (:func:`gromov.gmds.trimmed_rms`, the
 best-fitting 80% of the sample pairs). Each pair is matched once, as ``gh_matrix`` matches it
 (``orientation="ignore"``), and the same correspondence is then summarised four ways -- the
-residuals ``(d_X - d_Y) / diameter`` ("difference", before session 17) or ``log(d_X / d_Y)``
+residuals ``(d_X - d_Y) / diameter`` ("difference", the additive form) or ``log(d_X / d_Y)``
 ("log", :func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), each measured in
 the metric of the match (scale 1) and, for the heat-kernel diffusion metric, with the heat
-distance at half the diffusion time (``rank_tau_scale=0.5``, session 16) -- through
+distance at half the diffusion time (``rank_tau_scale=0.5``, the default) -- through
 :func:`gromov.gh.ranking_value`, the function ``match`` ranks with. Printed per ranking: the
 equal error rate and the *margin* (smallest different-class over largest same-class distance;
 above 1 when one threshold separates every pair).

@@ -4,9 +4,9 @@ Run:  .venv/bin/python benchmarks/bench_topkids.py [--data DIR] [--json OUT]
 
 SHREC'16 "Topological KIDS": kid01-kid25 matched to kid00 (``gromov reproduce``'s section 6:
 each kid simplified on its own to 3,000 vertices, 100 samples, the metrics a correspondence
-gets by default -- fast-marching geodesic, heat-kernel diffusion with small holes closed, since
-session 15 between normalised heat distributions (``correspondence_options``; ``--units raw``:
-the raw heat distance, as before)). For each match:
+gets by default -- fast-marching geodesic, heat-kernel diffusion with small holes closed,
+between normalised heat distributions (``correspondence_options``; ``--units raw``: the raw
+heat distance)). For each match:
 
 - d(C, C0) of the kid -> kid00 map (mean geodesic error on kid00 ÷ its geodesic diameter,
   the left/right mirrored ground truth counted as correct), as in ``gromov reproduce``;

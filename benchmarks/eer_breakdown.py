@@ -51,7 +51,7 @@ def breakdown(results: dict) -> dict:
         cross = np.isin(labels, ("david", "victoria"))
         not_mf = ~(cross[:, None] & cross[None] & (labels[:, None] != labels[None]))
         for m in ("geodesic", "diffusion"):
-            # "relative": the GH estimates; "trimmed" (session 10 on): the trimmed distortion
+            # "relative": the GH estimates; "trimmed" (where recorded): the trimmed distortion
             for stat, key in (("GH", "relative"), ("trimmed", "trimmed")):
                 if key not in rec[m]:
                     continue

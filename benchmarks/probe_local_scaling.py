@@ -6,7 +6,7 @@ Run:  .venv/bin/python benchmarks/probe_local_scaling.py [--ks 2,3,4] [--no-clos
 :func:`gromov.experiments.recognition.local_scaling` divides each pair's distance by the
 geometric mean of the two shapes' distances to their k-th nearest shape (Zelnik-Manor &
 Perona, NIPS 2004). A weld moves a welded shape's diffusion distances to *every* other shape
-(``weld_rows.py``, session 11), so a per-shape scale is what such noise changes. Nothing is
+(``weld_rows.py``), so a per-shape scale is what such noise changes. Nothing is
 matched again for the sets that ``gromov reproduce`` has results files of: the ranking matrices
 (``recognition.<experiment>.<metric>.trimmed``) are read from them, and ranked as they are and
 after local scaling with each k. Printed per ranking: the EER and the *margin* (smallest
@@ -22,8 +22,8 @@ The validation sets, never the paper's classes (cat, dog, david, victoria):
   0.5 of the way from david's (``bench_close_humanoids.py``'s set: 50 samples, reference + 4
   poses, clean and welded) -- matched here (about a minute on 2 cores; ``--no-close`` skips).
 
-k is chosen by the geometric mean of the diffusion margins over the eight readings (the
-sessions' rule for a ranking choice). The smallest class of every set's Experiment 1 has 5
+k is chosen by the geometric mean of the diffusion margins over the eight readings (the rule
+every ranking choice of docs/design/recognition.md follows). The smallest class of every set's Experiment 1 has 5
 shapes (``smallest`` in the output): from k = 5 on, scales come from other classes. ``--paper`` adds the paper's classes from their results
 file, printed apart, for information only.
 """

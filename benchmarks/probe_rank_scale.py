@@ -1,10 +1,10 @@
-"""Does recognition's ranking gain from how it treats the two shapes' scales? (Session 19 probes.)
+"""Does recognition's ranking gain from how it treats the two shapes' scales? (Variants not taken.)
 
 Run:  .venv/bin/python benchmarks/probe_rank_scale.py [--sets close0.5,close1,stretched,synthetic,heldout]
                                                       [--metrics diffusion] [--json OUT]
 
 The same correspondences as :mod:`bench_rank_residual` (each pair matched once as
-:func:`gromov.experiments.gh_matrix` matches it), ranked by today's value -- half the trimmed
+:func:`gromov.experiments.gh_matrix` matches it), ranked by the default value -- half the trimmed
 RMS of the log ratios of corresponding heat distances at half the diffusion time, each shape at
 its own time ``t = tau * area`` ("own") -- and by variants that treat the scale differently:
 
@@ -16,7 +16,7 @@ its own time ``t = tau * area`` ("own") -- and by variants that treat the scale 
   of its area (which removes the ``1 / sqrt(area)`` that raw heat distances scale with) or its
   area (the ``"length"`` units' ``t``): a global scale offset of the log ratios.
 - ``shape``: the log ratios less their median (a fitted global scale); ``shape+size``,
-  ``own+size``: that, or today's value, combined in quadrature with the log ratio of a pure
+  ``own+size``: that, or the default value, combined in quadrature with the log ratio of a pure
   scaling with the working meshes' areas, ``0.5 log(A_X / A_Y)``; ``|size|`` that term alone;
   ``med``: the absolute median of the log ratios alone (the fitted scale).
 

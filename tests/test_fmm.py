@@ -186,9 +186,9 @@ def test_cat_working_mesh_against_exact_geodesics(cat_working):
     v, f, src, exact = _cat_and_exact(cat_working, 12)
     rel = _rel_err(FastMarching(v, f).distances(src), exact)
     rel_plain = _rel_err(FastMarching(v, f, _update="source").distances(src), exact)
-    # 0.198%, 0.82%, 3.4% when written (0.38%, 1.04%, 4.8% without directions; 0.20%,
-    # 0.93%, 8.5% on the given triangulation, without the consistency test). The issue's
-    # 3% max is not met on the working mesh itself: the 3.4% is an underestimate at a
+    # measured: 0.198%, 0.82%, 3.4% (0.38%, 1.04%, 4.8% without directions; 0.20%,
+    # 0.93%, 8.5% on the given triangulation, without the consistency test). A 3% max is
+    # not reached on the working mesh itself: the 3.4% is an underestimate at a
     # shock, where a rejected fit falls back to a planar value that is too small (see
     # _fmm's docstring); with refine=2 it is (next test).
     assert rel.mean() <= 0.005, rel.mean()
@@ -198,9 +198,9 @@ def test_cat_working_mesh_against_exact_geodesics(cat_working):
 
 
 def test_refined_marching_on_the_cat_is_within_3_percent(cat_working):
-    # the accuracy target (1% mean, 3% max against exact MMP on the 3,000-vertex
-    # cat) with the fast marching run on the twice-subdivided mesh; 100 random sources,
-    # not the 12 above. Measured when written, max / p99 / mean: refine 0 -- 7.89% /
+    # 1% mean and 3% max relative error against exact MMP on the 3,000-vertex cat, with the
+    # fast marching run on the twice-subdivided mesh; 100 random sources,
+    # not the 12 above. Measured max / p99 / mean: refine 0 -- 7.89% /
     # 1.00% / 0.209%; 1 -- 3.69% / 0.55% / 0.113%; 2 -- 1.74% / 0.33% / 0.066%.
     v, f, src, exact = _cat_and_exact(cat_working, 100)
     rel = [_rel_err(FastMarching(v, f, refine=r).distances(src), exact) for r in (0, 1, 2)]

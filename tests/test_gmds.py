@@ -337,8 +337,8 @@ def test_same_class_is_closer_on_tosca(tosca_shapes, metric):
     vertices and 100 samples GH(david0, david1) = 0.0084 and GH(david0, victoria0) = 0.0066 of
     the diameter, and the ground-truth correspondence of david0/david1 itself has distortion
     0.0141, above what GMDS finds -- the geodesic metric, not the optimiser, puts david1 (a
-    non-isometric pose) farther than victoria0 in the same reference pose. It is left out of
-    the assertion and reported on issue 3.
+    non-isometric pose) farther than victoria0 in the same reference pose, so it is left out
+    of the assertion (docs/design/metrics.md, "Geodesic distances").
     """
     s = {n: ShapeMetric(m, metric, resolution=2000) for n, m in tosca_shapes.items()}
     d = lambda a, b: match(s[a], s[b], metric, n_samples=60).relative_distance  # noqa: E731

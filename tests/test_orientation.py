@@ -95,7 +95,8 @@ def test_prefer_does_not_take_a_partial_flip_for_the_direct_map(held_out_pair):
     """horse0 -> horse6 with three welds (held-out class, built as ``gromov reproduce`` builds
     it), default diffusion metric: the lowest-distortion map found is mirrored, and among the
     orientation-preserving alternatives the lowest is a partial flip (agreement 0.54, d(C, C0)
-    0.097, until session 12 returned as "direct"). A clearly direct map (agreement above 1/2 +
+    0.097, which a rule accepting any agreement above 1/2 returns as "direct"). A clearly direct
+    map (agreement above 1/2 +
     ``DIRECT_MARGIN``) is preferred to it; here the mirrored map composed with a reflection
     gives one, and it is right."""
     from gromov.experiments.reproduce import _pair_quality
@@ -134,11 +135,11 @@ def test_prefer_warns_and_ignores_on_a_non_orientable_mesh():
 
 def test_prefer_returns_the_direct_map_on_the_tosca_cat(data_dir):
     """cat0 -> cat1 with the geodesic metric and the default search (``extend_keep=1``): the
-    lowest-distortion map found is the mirrored one (README, Matching);
+    lowest-distortion map found is the mirrored one;
     ``orientation="prefer"`` (the default) returns the direct one, with about the same
     distortion, and says so. (With ``extend_keep=0.7`` or with the signature-guided coarse
-    stages, the default since session 13, the search finds the direct map first on this pair,
-    which would not exercise the preference: both are off here.)"""
+    stages, which are on by default, the search finds the direct map first on this pair, which
+    would not exercise the preference: both are off here.)"""
     x = ShapeMetric(gromov.load(data_dir / "tosca" / "cat0.off.gz"), "geodesic")
     y = ShapeMetric(gromov.load(data_dir / "tosca" / "cat1.off.gz"), "geodesic")
     mirror = reflection_map(x.input)
@@ -175,7 +176,7 @@ def test_symmetry_of_an_ellipsoid_is_a_reflection():
 def test_symmetry_of_the_tosca_wolf_is_its_left_right_reflection(data_dir):
     """A reflection is its own inverse. Without that check the wolf's diffusion self-map sent
     a sixth of the vertices to the wrong leg (17.5% farther than 5% of the bounding box's
-    diagonal from the left/right mirror; session 9); with it (``INVOLUTION_TOL``) 1.3%."""
+    diagonal from the left/right mirror); with it (``INVOLUTION_TOL``) 1.3%."""
     s = ShapeMetric(gromov.load(data_dir / "tosca" / "wolf0.off.gz"), "diffusion")
     S = s.symmetry(100, 0)
     assert S is not None

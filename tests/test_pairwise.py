@@ -138,7 +138,7 @@ def test_prepare_warns_when_the_matrices_will_not_fit(monkeypatch):
 def test_recognition_ranks_by_the_distortion_at_the_finer_scale():
     """gh_matrix's trimmed matrix holds each correspondence's ranking distance (heat kernel:
     measured at rank_tau_scale x tau, default RANK_TAU_SCALE, of the log distance ratios,
-    default RANK_RESIDUAL); None and "difference" rank as before session 16 (relative_trimmed);
+    default RANK_RESIDUAL); None and "difference" rank by relative_trimmed (the match's scale);
     the GH estimates are the same either way."""
     from gromov.gh import RANK_RESIDUAL, RANK_TAU_SCALE
 

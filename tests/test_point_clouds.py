@@ -201,8 +201,8 @@ def test_cli_matches_point_cloud_files(tmp_path):
 
 def test_a_finer_heat_time_from_all_eigenpairs_of_a_small_cloud_stays_finite():
     # all 450 eigenpairs are computed; with 30 neighbours the top ones have lambda t ~ 1,500,
-    # where exp(-lambda t) underflows and exp(lambda t / 2) overflows: 0 * inf was NaN before
-    # session 19
+    # where exp(-lambda t) underflows and exp(lambda t / 2) overflows: 0 * inf would be NaN
+    # without the cap on the factor
     from gromov.metrics.diffusion import HeatDiffusionSolver
 
     cloud = PointCloud(bumpy_torus_points(450))

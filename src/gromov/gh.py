@@ -36,7 +36,7 @@ logger = logging.getLogger(__name__)
 
 DEFAULT_RESOLUTION = 3000
 #: Initial search of :func:`match`: first-sample candidates, and coarse starts extended to all
-#: samples per direction (chosen on held-out TOSCA classes; see ``match``).
+#: samples per direction (chosen on held-out TOSCA classes: docs/design/initial-search.md).
 DEFAULT_N_STARTS = 128
 DEFAULT_N_EXTEND = 8
 #: Coarse stages of the initial search: (samples placed, farthest point samples of the target
@@ -79,15 +79,18 @@ SIGNATURE_STARTS = 32
 #: ``tau``, *measured* with the heat distance at ``RANK_TAU_SCALE * tau`` (a finer scale) on
 #: the same eigenpairs (:meth:`HeatDiffusionSolver.at_tau
 #: <gromov.metrics.diffusion.HeatDiffusionSolver.at_tau>`); see ``match``'s
-#: ``rank_tau_scale``. Chosen in session 16 on validation sets (docs/notebook.md, "Session 16:
-#: recognition at a finer scale").
+#: ``rank_tau_scale``. Chosen on the validation sets: the margin of the diffusion ranking rises
+#: in six readings of seven, e.g. synthetic welds 0.988 -> 1.427 (``.venv/bin/python
+#: benchmarks/bench_rank_residual.py``, "difference @1" against "@0.5"; see
+#: docs/design/recognition.md).
 RANK_TAU_SCALE = 0.5
 #: How recognition summarises the residuals of a correspondence (see ``match``'s
 #: ``rank_residual``): ``"log"``, the trimmed RMS of the log ratios of corresponding distances
 #: (:func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), or
-#: ``"difference"``, that of their differences over the larger diameter (before session 17).
-#: Chosen in session 17 on validation sets (docs/notebook.md, "Session 17: a multiplicative
-#: distortion for recognition").
+#: ``"difference"``, that of their differences over the larger diameter (the additive form).
+#: Chosen on the validation sets: the diffusion margin is larger in seven readings of eight and
+#: equal in the eighth (``.venv/bin/python benchmarks/bench_rank_residual.py``; see
+#: docs/design/recognition.md).
 RANK_RESIDUAL = "log"
 RANK_RESIDUALS = ("difference", "log")
 #: The floor of :func:`gromov.gmds.log_ratio_residuals` in recognition, a fraction of the larger
@@ -234,10 +237,8 @@ class ShapeMetric:
         samples best fit those to the samples' images (:func:`anchored_images`). A reflection
         is its own inverse, so where the two halves of the self-map disagree at a sample (by
         more than ``INVOLUTION_TOL`` of the diameter) those samples are re-anchored on the
-        agreeing ones and GMDS descends again (up to ``INVOLUTION_REPAIRS`` times): on the
-        TOSCA wolf and horse the diffusion self-map otherwise sent a leg to another leg
-        (17% / 38% of the vertices farther than 5% of the bounding box from the mirror;
-        with the repair 1.3% / 29%).
+        agreeing ones and GMDS descends again (up to ``INVOLUTION_REPAIRS`` times), so that a
+        leg is not sent to another leg (docs/design/initial-search.md, "Mirror images").
         :func:`match` composes a mirrored correspondence with it to get the direct one.
         """
         key = (int(n_samples), int(seed))
@@ -370,8 +371,7 @@ class MatchResult:
         ``D_X(C) - D_Y(C)`` of the final two-sided correspondence C = (P x Q') u (P' x Q): rows
         and columns are first X's M samples (on Y: their images), then Y's K samples (on X:
         their images), in the order of ``x_samples`` and ``y_samples``. Where a shape's
-        topology changed, the pairs whose paths run through the change can stand out (on
-        welded TOSCA shapes, clearly with the diffusion metric, hardly with geodesics).
+        topology changed, the pairs whose paths run through the change can stand out.
     """
 
     distance: float
@@ -545,8 +545,8 @@ def _trimmed_descent(dx, DY, img, keep: float, rounds: int, R, C):
     all vertices of Y) on the best-fitting ``ceil(keep m)`` samples alone, then places the
     others greedily given them; it stops after ``rounds`` rounds or when nothing moves. A
     change of topology moves whole rows of the distances (a weld changes a nearby point's
-    diffusion distance to every point: docs/notebook.md, "What a weld does to the diffusion metric"),
-    so the samples near it are set aside instead of pulling the others' images.
+    diffusion distance to every point: docs/design/perturbations.md), so the samples near it
+    are set aside instead of pulling the others' images.
     """
     m = len(dx)
     h = max(2, int(np.ceil(keep * m - 1e-9)))
@@ -828,7 +828,7 @@ def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray 
     # a shape against itself has no change of topology to set aside: the plain extension (with
     # the trimmed one the wolf's reflection sent 31% of its vertices astray, not 1.3%), and no
     # signature-guided stages (with them the wolf's reflection again sent 31% of its vertices
-    # astray; session 13, not investigated further)
+    # astray)
     search = _Starts(s, s, P, P, n_starts=DEFAULT_N_STARTS, n_extend=DEFAULT_N_EXTEND,
                      coarse_stages=DEFAULT_COARSE_STAGES, search_vertices=DEFAULT_SEARCH_VERTICES,
                      extend_keep=1.0, signature_weight=0.0)
@@ -999,166 +999,65 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
           dense: bool | str = False) -> MatchResult:
     r"""Gromov-Hausdorff distance and correspondence between two shapes.
 
+    Minimises the distortion of a two-sided correspondence C between farthest point samples,
+    :math:`\hat d_{GH}(X, Y) = \tfrac12 \min_C \mathrm{dis}_p(C)`, by symmetric GMDS from a
+    multi-start initial search (Bronstein et al., IJCV 2010, §2 and §4). How the search and
+    its defaults were chosen: docs/design/initial-search.md.
+
     Parameters
     ----------
     X, Y : Mesh, PointCloud, path, (vertices, faces), (n, 3) array, trimesh.Trimesh or ShapeMetric
-        Shapes (a :class:`ShapeMetric` reuses its precomputed metric; arrays and mesh objects
-        are read by :func:`gromov.mesh.as_shape`, and the results' vertex ids index them).
-        **Point clouds** (points without faces: an ``(n, 3)`` array, a
-        :class:`~gromov.mesh.PointCloud`, a file without faces) are matched too: their working
-        set is ``resolution`` farthest points (:func:`gromov.resolution.working_cloud`), the
-        geodesic metric is Dijkstra on the k-nearest-neighbour graph, the diffusion metric that
-        of the robust point-cloud Laplacian. With a point cloud on either side the
-        correspondence is the initial search's discrete map (images at working points or
-        vertices, no GMDS refinement inside triangles, which needs faces on both sides); images
-        on a cloud are given as its points (``x_to_y_vertex``) with face -1 and NaN
-        barycentric coordinates, images on a mesh as usual; ``orientation`` is NaN and not
-        preferred (a cloud has no outward side); ``norm`` only chooses what is reported;
-        ``radius`` is refused; with ``init`` or ``solver`` "gw" the images are the other
-        shape's samples (the coupling's argmax, not refined). A mesh matched with a cloud is
-        warned about: the two metrics are built differently.
+        A :class:`ShapeMetric` reuses its metric. With a point cloud on either side the map is
+        the search's discrete one: images at points (face -1, NaN barycentrics).
     metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
     n_samples : int, default 100
         Farthest point samples per shape.
     norm : {"l2", "linf"} or "p:VALUE", default "l2"
         Norm of the distortion that is minimised and reported as ``distance``.
-    solver : {"gmds", "gw"}, default "gmds"
-        Symmetric GMDS, or the Gromov-Wasserstein coupling (POT) on the same samples.
-    init : {"greedy", "gw"}, default "greedy"
-        GMDS initial guess: multi-start greedy placement refined coarse to fine, or the GW
-        coupling's argmax.
-    n_starts : int, default 128
-        Candidate images of the first sample in the greedy initialisation, at most: the
-        vertices of Y whose distance-distribution signatures are closest to the sample's, at
-        least 5% of the diameter apart -- the spacing caps the count (geodesic, TOSCA at 3,000
-        vertices: 109-143 fit; diffusion: 400-700). From each, the first 12 samples are placed
-        greedily.
-    n_extend : int, default 8
-        How many of those coarse starts (the lowest-distortion ones) are extended to all
-        samples and polished by discrete descent, per direction. The defaults were chosen on
-        TOSCA classes that the paper's experiments do not use (horse, centaur, wolf, michael;
-        ``benchmarks/bench_heldout.py`` shapes): against 16 and 4, mean d(C, C0) with the
-        heat-kernel diffusion metric went from 0.103 to 0.082 with welds, 0.176 to 0.078 with
-        10 holes and 0.199 to 0.159 with 20 holes (clean 0.030 to 0.029), and with the
-        geodesic metric from 0.033 to 0.023 clean and 0.088 to 0.078 with welds; the found
-        distortion was lower in 23 of 64 pairs, higher in 6. A match takes about 2.9 times as
-        long (cat, geodesic, 100 samples, one thread, side by side: 0.091 s to 0.263 s).
+    solver, init : {"gmds", "gw"}, {"greedy", "gw"}, default "gmds", "greedy"
+        Symmetric GMDS or the Gromov-Wasserstein coupling (POT); GMDS's start ("gw": the argmax).
+    n_starts, n_extend : int, default 128, 8
+        Candidate images of the first sample (closest signatures, at least 5% of the diameter
+        apart), and coarse starts per direction extended to all samples.
     coarse_stages : sequence of (int, int or None), default ((12, None), (20, 1000))
-        The coarse stages of the initial search: place the first ``c`` samples from every
-        candidate (greedy, then discrete descent), over ``k`` farthest point samples of the
-        target or over all its working vertices (None); the ``n_extend`` extended starts are
-        shared out evenly among the stages. Chosen on the held-out classes
-        (``benchmarks/bench_heldout.py``; session 6): adding the 20-sample stage on 1,000
-        vertices to the 12-sample one took the mean d(C, C0) of the heat-kernel diffusion
-        metric from 0.031 / 0.034 / 0.048 / 0.041 (clean / welds / 10 / 20 holes) to
-        0.025 / 0.039 / 0.018 / 0.028, and of the geodesic metric from 0.023 / 0.066 / 0.025 /
-        0.024 to 0.023 / 0.066 / 0.024 / 0.023, for about 30% more time per match. The same
-        stage over all vertices gave 0.020 / 0.032 / 0.046 / 0.036 at 2.3 times the time.
+        Each stage places the first ``c`` samples from every candidate, over ``k`` farthest
+        point samples of the target (None: all its working vertices).
     search_vertices : int or None, default None
-        Restrict the initial search (both stages above) to this many farthest point samples
-        of each target shape, then polish the best start by discrete descent over all
-        working vertices (the coarse stages then all run on the subset). About 2.5-4 times
-        faster per match, and less reliable on welded shapes: on the held-out classes
-        (``benchmarks/bench_heldout.py --search-vertices 500``, against the full search, both
-        with the one-stage search of session 5) mean d(C, C0) with the geodesic metric stayed
-        0.024 / 0.066 / 0.025 / 0.024 (clean / welds / 10 / 20 holes; was 0.023 / 0.066 /
-        0.025 / 0.024), with the heat-kernel diffusion metric 0.026 / **0.098** / 0.049 /
-        0.035 (was 0.031 / 0.034 / 0.048 / 0.041). With 1,000: geodesic 0.025 / 0.072 / 0.025 /
-        0.024, diffusion 0.026 / 0.080 / 0.024 / 0.035. None: all working vertices.
+        Run the search on this many farthest point samples of each target (faster).
     seed : int, default 0
         Seeds the farthest point sampling; the rest is deterministic.
     resolution : int or None, default 3000
-        Working mesh size when X or Y are not prepared already.
+        Working mesh size for shapes not prepared already (None: the input as it is).
     metric_options : dict, optional
-        Options of the metric (:func:`gromov.metric_solver`) for shapes not prepared yet;
-        not given, those of the other shape when it is a prepared :class:`ShapeMetric`
-        (:func:`match_options_for`). For a correspondence, the heat-kernel diffusion metric
-        defaults to normalised heat distributions (``units="normalized"``, tau 0.01) unless
-        ``units`` or ``tau`` is given
-        (:func:`gromov.metrics.diffusion.correspondence_options`); GH distance matrices
-        (:func:`gromov.experiments.pairwise.gh_matrix`, ``gromov pairwise``) keep the raw
-        heat distances, which separate classes better (README, "Choices worth knowing").
-    max_iter, tol : GMDS sweeps and relative stopping tolerance.
+        Default: a prepared shape's, else :func:`~gromov.metrics.diffusion.correspondence_options`.
+    max_iter, tol : int, float, default 100, 1e-6
+        GMDS sweeps and relative stopping tolerance.
     radius : float, optional
         Partial matching: only pairs of samples closer than ``radius`` count.
     orientation : {"prefer", "ignore"}, default "prefer"
-        "prefer": when the correspondence found reverses the surfaces' orientation (a mirror
-        image: left and right swapped on a symmetric body, which intrinsic distances cannot
-        tell apart), run GMDS also from the best orientation-preserving start -- among the
-        extended starts and up to half as many more preserving coarse starts per stage -- and
-        return that map when its distortion is at most ``ORIENTATION_TOL`` (10%) above the
-        other's and it is clearly direct (orientation agreement above 1/2 + ``DIRECT_MARGIN``,
-        0.65); failing that, from the mirrored map composed with a reflection of X, then of
-        Y (:meth:`ShapeMetric.symmetry`, found once per shape), kept within ``FLIP_TOL`` (25%)
-        when clearly direct; failing that, the first of those maps that is direct at all
-        (agreement above 1/2), as before session 12. A map direct on part of the shapes and
-        mirrored on the rest (a leg sent to the other side) has an agreement near 1/2, and so
-        has a noisy right map (:mod:`gromov.orientation`; ignored with a warning when a
-        working mesh is not orientable). When the first map keeps the orientation, the
-        result is the same as with "ignore". Chosen on the held-out classes
-        (``benchmarks/bench_heldout.py --orientation``, session 8): d(C, C0) with the mirrored map counted as wrong went
-        from 0.101 / 0.104 / 0.063 / 0.081 (clean / welds / 10 / 20 holes) to 0.022 / 0.066 /
-        0.024 / 0.023 with the geodesic metric and from 0.039 / 0.093 / 0.038 / 0.079 to
-        0.039 / 0.053 / 0.018 / 0.079 with the heat-kernel diffusion metric; with the mirrored
-        map counted as correct, geodesic 0.023 / 0.066 / 0.024 / 0.023 to 0.022 / 0.066 /
-        0.024 / 0.023, diffusion 0.025 / 0.039 / 0.018 / 0.028 to 0.025 / 0.044 / 0.018 /
-        0.028 (two wrong welded maps replaced by other wrong ones: partial flips, agreement
-        0.54). Session 12, the clearly direct map first: diffusion 0.025 / **0.035** / 0.018 /
-        0.027 (direct reading 0.039 / 0.043 / 0.018 / 0.047), geodesic unchanged
-        (``benchmarks/results/heldout-s12.json``).
-    extend_keep : float, default 1 (off)
-        With ``extend_keep < 1``: after each extended start's discrete descent over all
-        samples, ``EXTEND_ROUNDS`` (3) rounds of sample-level least trimmed squares: descend
-        on the best-fitting fraction ``extend_keep`` of the samples only, then place the
-        others given them. A change of topology moves whole rows of the distances, and the
-        samples near it then no longer pull the others. Session 11 (0.7): on the held-out
-        classes (``benchmarks/bench_extend_keep.py``) diffusion d(C, C0) clean / welds / 10 /
-        20 holes 0.025 / 0.044 / 0.018 / 0.027 -> 0.017 / 0.042 / 0.015 / 0.027, geodesic
-        unchanged; on the synthetic set welds 0.099 -> 0.075 (diffusion), 0.099 -> 0.088
-        (geodesic); on the paper's classes diffusion EER with welds 9.0% -> 7.4% but weld
-        d(C, C0) 0.044 -> 0.050, and ``gromov reproduce`` 718 s -> 1,007 s (the pairs in
-        one-thread workers take 1.75 times as long), over its 15-minute target -- so it is
-        not the default (README, "Choices worth knowing").
+        "prefer": a mirrored map is replaced by an orientation-preserving one within
+        ``ORIENTATION_TOL`` (10%) of its distortion, or by its composition with a reflection
+        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`).
+    extend_keep : float, default 1
+        Below 1: each extended start descends on this fraction of its samples
+        (``EXTEND_ROUNDS`` rounds of sample-level least trimmed squares).
     signature_weight : float, default 1
-        Each coarse stage is run a second time from the ``SIGNATURE_STARTS`` (32) candidates
-        with the best-matching signatures, with a per-image cost added to the distortion:
-        sample k placed at vertex v costs ``signature_weight * (c - 1) * delta(k, v)^2``
-        more, ``delta`` the mean absolute difference of the two vertices' signatures
-        (:attr:`ShapeMetric.descriptors`: quantiles of their distances) -- as if each of its
-        ``c - 1`` distances were off by that much; ``n_extend`` is then shared among twice as
-        many stages. Why: the first samples are the farthest apart (the extremities), and
-        diffusion distances saturate at that range (centaur, heat kernel: all pairs of the
-        first 12 samples 0.80-1.00 of the diameter), so distances alone hardly tell a hand
-        from a hoof and the greedy placement went astray from the right first image. 0
-        turns it off (as before session 13). Chosen on the held-out classes (session 13,
-        ``benchmarks/results/heldout-s13.json``): diffusion d(C, C0) clean / welds / 10 / 20
-        holes 0.025 / 0.035 / 0.018 / 0.027 -> 0.021 / 0.023 / 0.011 / 0.020, geodesic welds
-        0.066 -> 0.059 (rest unchanged); weights 0.25 / 0.5 / 2 were mixed (docs/notebook.md, "Session 13").
-    rank_tau_scale : float, optional
-        With the heat-kernel diffusion metric: ``ranking_distance`` is the final
-        correspondence's trimmed distortion measured with the heat distance at this times the
-        diffusion time (:meth:`ShapeMetric.ranking_surface`); the search, the correspondence
-        and every other field are unchanged. Recognition (:func:`gromov.experiments.gh_matrix`)
-        passes :data:`RANK_TAU_SCALE` (0.5): the correspondence is found at the coarser scale,
-        where the search is robust, and measured at the finer one, where two similar classes
-        differ more. None: ``ranking_distance = relative_trimmed``.
-    rank_residual : {"difference", "log"}, default "difference"
-        How ``ranking_distance`` summarises the correspondence's residuals
-        (:func:`ranking_value`): half the trimmed RMS of the distance differences over the
-        larger diameter (``"difference"``: with ``rank_tau_scale=None``, ``relative_trimmed``)
-        or of the log ratios of the distances (``"log"``, a multiplicative distortion,
-        :func:`gromov.gmds.log_ratio_residuals`). Recognition passes
-        :data:`RANK_RESIDUAL` ("log"). Nothing else changes.
+        Weight w of the per-image cost :math:`w\,(c - 1)\,\delta(k, v)^2` (δ: signature
+        mismatch) in each coarse stage's second run, from ``SIGNATURE_STARTS`` candidates; 0: off.
+    rank_tau_scale, rank_residual : float or None, {"difference", "log"}, default None, "difference"
+        How ``ranking_distance`` is measured (:func:`ranking_value`): with the heat distance
+        at this times the diffusion time, of distance differences or log ratios.
     dense : bool, "zoomout" or "placed", default False
-        Also compute the dense maps: an image on Y for every input vertex of X and on X for
-        every input vertex of Y (``x_to_y_dense_*``, ``y_to_x_dense_*``;
-        :func:`gromov.dense.dense_maps`), placed by their distances to the matched samples and
-        refined spectrally (:func:`gromov.dense.zoomout`; True and "zoomout"), or only placed
-        ("placed").
+        Also map every input vertex (:mod:`gromov.dense`), refined by ZoomOut unless "placed".
 
     Returns
     -------
     MatchResult
+
+    Examples
+    --------
+    >>> r = match("cat0.off.gz", "cat1.off.gz")                 # doctest: +SKIP
+    >>> r.relative_distance, r.x_to_y_vertex[:3]                # doctest: +SKIP
     """
     t0 = time.perf_counter()
     p = parse_norm(norm)

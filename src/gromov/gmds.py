@@ -80,8 +80,10 @@ TRIM_KEEP = 0.8
 """Fraction of the pairs the trimmed distortion keeps (:func:`trimmed_rms`).
 
 Chosen on the synthetic set and TOSCA classes the paper's experiments do not use (horse,
-centaur, wolf, michael), before the paper's classes were measured with it: see docs/notebook.md,
-"Recognition with a trimmed distortion"."""
+centaur, wolf, michael): the best diffusion ranking of those tried on both sets, EER with welds
+0.0% (synthetic) and 0.6% (held-out) against 4.7% and 1.1% for the RMS
+(``.venv/bin/python benchmarks/recognition_statistics.py --set synthetic|heldout``; see
+docs/design/recognition.md)."""
 
 
 def trimmed_rms(r: np.ndarray, keep: float = TRIM_KEEP) -> float:
@@ -127,8 +129,8 @@ def sample_trimmed_rms(e: np.ndarray, keep: float) -> float:
     whole rows, which is how a weld moves the heat-kernel diffusion distance (between far
     points :math:`d_t^2 \approx k_{2t}(x,x) + k_{2t}(y,y)`, and a weld changes the return
     probability of the points near it). ``keep = 1`` is the RMS of the off-diagonal entries.
-    Not used by :func:`gromov.match` or recognition; measured in ``benchmarks/`` (docs/notebook.md,
-    "What a weld does to the diffusion metric").
+    Not used by :func:`gromov.match` or recognition; measured in ``benchmarks/``
+    (docs/design/perturbations.md, "What a weld does to the diffusion metric").
     """
     e = np.asarray(e, dtype=float)
     if e.ndim != 2 or e.shape[0] != e.shape[1]:

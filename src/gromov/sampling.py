@@ -161,7 +161,8 @@ class _EuclideanBuckets:
 
 
 #: Points per bucket of the Euclidean sampling (256: of 64-1,024, the fastest on normal and
-#: torus clouds of a million points, 0.01 s behind 128 on a uniform one; session 20).
+#: torus clouds of a million points, 0.01 s behind 128 on a uniform one;
+#: docs/design/point-clouds.md).
 _BUCKET = 256
 #: Points from which the Euclidean sampling visits its buckets in numba threads.
 _PARALLEL_MIN = 50_000

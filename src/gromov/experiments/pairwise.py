@@ -248,7 +248,7 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     rank_residual : {"log", "difference"}, default RANK_RESIDUAL ("log")
         How ``trimmed`` summarises each correspondence's residuals (:func:`gromov.match`'s
         ``rank_residual``): the log ratios of corresponding distances (a multiplicative
-        distortion) or their differences over the larger diameter (as before session 17).
+        distortion) or their differences over the larger diameter (the additive form).
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``...).
 

@@ -35,9 +35,11 @@ __all__ = ["ROC", "roc", "equal_error_rate", "errors_at", "local_scaling", "loca
 
 logger = logging.getLogger(__name__)
 
-#: The neighbour whose distance is a shape's local scale in :func:`local_scaling` (session 20:
-#: chosen on the validation sets -- synthetic, stretched synthetic, close people, held-out
-#: TOSCA classes -- by the geometric mean of the diffusion rankings' margins; docs/notebook.md).
+#: The neighbour whose distance is a shape's local scale in :func:`local_scaling`. Chosen on the
+#: validation sets -- synthetic, stretched synthetic, close people, held-out TOSCA classes -- by
+#: the geometric mean of the diffusion rankings' margins: 2.095 at k = 4, against 1.608 as ranked
+#: and 1.979 / 2.018 / 1.753 at k = 2 / 3 / 5 (``.venv/bin/python benchmarks/probe_local_scaling.py``;
+#: docs/design/recognition.md).
 #: In those sets the smallest class of Experiment 1 has 5 shapes: k = 4 is that less one, and
 #: k >= 5 (scales from other classes) was worse. Keep k below your smallest class.
 LOCAL_SCALING_K = 4
@@ -291,7 +293,7 @@ def local_scaling(distances, k: int = LOCAL_SCALING_K) -> np.ndarray:
     (2004), §2 (their affinity is ``exp(-D'^2)``, a decreasing function of ``D'``). Each
     distance is measured in the units of the two shapes' neighbourhoods: a shape with
     topological noise, which lies farther from its own class than the clean shapes do (welds:
-    1.26-1.35 times, in the rankings of ``gromov reproduce``; docs/notebook.md, session 20),
+    1.26-1.35 times, in the rankings of ``gromov reproduce``; docs/design/recognition.md),
     gets a larger scale, so one global threshold serves noisy and clean shapes alike. A row
     inflated ``c`` times comes out inflated ``sqrt(c)`` times where the other shapes' scales
     do not involve it.
@@ -456,7 +458,7 @@ def _figure(figsize, dpi):
     """A matplotlib Figure on its own Agg canvas.
 
     Pyplot is never imported, so no global backend is chosen or changed (the effect of
-    ``matplotlib.use("Agg")`` without the side effect on the caller's session).
+    ``matplotlib.use("Agg")`` without the side effect on the caller's process).
     """
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg

@@ -183,8 +183,8 @@ Against exact geodesics on 3,000-vertex simplified TOSCA shapes (cat, dog, david
 horse, centaur, michael; 12, 20, 30 and 40 random sources each), the flips, the wide
 angles and the consistency test together take the largest relative error from a
 median of 9.6% (worst 23.8%) to 5.8% (worst 11.9%) and the 99th percentile from 1.32%
-to 1.17% on average, with the mean at 0.27% (0.26% before); on the cat, 12 sources:
-mean 0.21%, 99th percentile 0.81%, max 3.4% (before: 0.20%, 0.93%, 8.5%); with the
+to 1.17% on average, with the mean at 0.27% (0.26% without them); on the cat, 12 sources:
+mean 0.21%, 99th percentile 0.81%, max 3.4% (without them: 0.20%, 0.93%, 8.5%); with the
 direction-aware directions out of the test (above) 0.198%, 0.82%, 3.4%. The errors
 left are at the shocks where fronts from both sides of a strongly curved vertex meet,
 and next to strongly curved saddle vertices (total angle up to 8.1 rad on the
@@ -210,7 +210,7 @@ the curved vertices (|total angle - 2 pi| > 0.15-0.3) or only the long edges hel
 less per added vertex (cat, 100 sources: max 7.9% and 4.4-4.6% at 4,200-6,700 marched
 vertices). A virtual-source fit relative to a saddle vertex acting as a pseudo-source
 (an offset distance carried per front) and dropping the planar fallback in a saddle's
-shadow were tried and made the largest errors worse (cat, 100 sources: 8.3-12.0%).
+shadow make the largest errors worse (cat, 100 sources: 8.3-12.0%).
 
 **Several sources.** :meth:`FastMarching.distance` marches from all sources at once;
 each vertex remembers which source's front reached it and a triangle update only
