@@ -1,17 +1,23 @@
-"""Print the README's result tables (Markdown) from `gromov reproduce` results files.
+"""Print the result tables of README.md and docs/benchmarks.md (Markdown) from the results files.
 
     .venv/bin/python benchmarks/readme_tables.py [RESULTS.json ...]
 
-Without arguments: the three committed runs (paper's classes + TOPKIDS, held-out classes,
-synthetic set). Every number is read from the file; the paper's are
-:data:`gromov.experiments.report.PAPER`. Nothing is computed again.
+Without arguments: every table of the two pages, in order (the ``gromov reproduce`` runs on
+the paper's classes + TOPKIDS, the held-out classes and the synthetic set, then the anchors
+and each benchmark's table). With files: the tables of those ``gromov reproduce`` runs.
+Every number is read from a file under ``benchmarks/results/``; the paper's are
+:data:`gromov.experiments.report.PAPER`. Nothing is computed again, and tests/test_benchmarks.py
+checks that the pages hold exactly these tables.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shlex
 from pathlib import Path
+
+import numpy as np
 
 from gromov.experiments.report import PAPER, errors_text, other_classes
 
@@ -23,6 +29,13 @@ EXPERIMENTS = (("weld", "Experiment 1 (welds)"), ("holes", "Experiment 2 (holes)
 # the paper reports one correspondence number "with topology changes"; compared with both
 # welds and holes, as the report does
 PAPER_CONDITION = {"clean": "clean", "weld": "topology", "holes": "topology"}
+#: bench_match.py's and bench_point_clouds.py's pairs, in their order
+PAIRS = ("cat0-cat1", "dog0-dog1", "david0-david1", "victoria0-victoria1")
+
+
+def load(name: str) -> dict:
+    """A results file under benchmarks/results/ by its name (``"match.json"``)."""
+    return json.loads((HERE / name).read_text())
 
 
 def _pct(x) -> str:
@@ -35,6 +48,10 @@ def _num(x, digits: int = 3) -> str:
     return "–" if x is None else f"{x:.{digits}f}"
 
 
+def _secs(x: float) -> str:
+    return f"{x:.2f} s" if x < 10 else (f"{x:.1f} s" if x < 100 else f"{x:.0f} s")
+
+
 def _paper(*keys):
     d = PAPER
     for k in keys:
@@ -42,6 +59,22 @@ def _paper(*keys):
             return None
         d = d[k]
     return d
+
+
+# ----------------------------------------------------------------------- gromov reproduce
+def command(r: dict) -> str:
+    """The command a ``gromov reproduce`` run recorded, its output folder named by its last
+    component only (the folder it was written to is not part of the result)."""
+    words = shlex.split(r["command"])
+    for i, w in enumerate(words[:-1]):
+        if w == "--out":
+            words[i + 1] = Path(words[i + 1]).name
+    return shlex.join(words)
+
+
+def caption(r: dict) -> str:
+    """The command that made a ``gromov reproduce`` results file, with its time and date."""
+    return f"`{command(r)}` — {r['seconds_total']:.0f} s on {r['jobs']} cores, {r['date']}"
 
 
 def table(r: dict) -> str:
@@ -98,18 +131,187 @@ def errors(r: dict) -> str:
     return "\n".join(out)
 
 
+# ----------------------------------------------------------------------------- benchmarks
+def _match_mean(m: dict, metric: str, solver: str) -> float:
+    return float(np.mean([m["accuracy"][f"{p}/{metric}/{solver}"]["best"] for p in PAIRS]))
+
+
+def anchors_table() -> str:
+    """gromov beside the tool a practitioner would otherwise use, one row per task."""
+    f = load("foundation.json")["geodesic_all_pairs"]
+    m, dense, fps = load("match.json"), load("dense.json"), load("cloud_sampling.json")
+    ours, heat = f["gromov fmm (ours)"], f["potpourri3d heat"]
+    big = max(fps["rows"], key=lambda row: row["points"])
+    td, tt = dense["topkids"]["summary"], dense["tosca"]["summary"]
+    rows = [
+        "| task | gromov | anchor |",
+        "|---|---|---|",
+        f"| geodesic distances, all pairs of a {f['n_vertices']:,}-vertex TOSCA cat: time; mean / max "
+        f"error against exact geodesics | {_secs(ours['seconds'])}; {_pct(ours['mean_rel_err'])} / "
+        f"{_pct(ours['max_rel_err'])} (fast marching) | {_secs(heat['seconds'])}; "
+        f"{_pct(heat['mean_rel_err'])} / {_pct(heat['max_rel_err'])} (potpourri3d, heat method) |",
+        f"| sample correspondence, {len(PAIRS)} TOSCA pairs, diffusion metric: mean error ÷ diameter "
+        f"| {_num(_match_mean(m, 'diffusion', 'gmds'), 4)} (GMDS) | "
+        f"{_num(_match_mean(m, 'diffusion', 'gw'), 4)} (POT, Gromov–Wasserstein) |",
+        f"| time per match, cat0 → cat1, geodesic metrics prepared, one thread | {_secs(m['speed']['match_seconds'])} "
+        f"| {m['speed']['pot_gw_seconds'] * 1000:.1f} ms (POT) |",
+        f"| dense map, {len(dense['topkids']['pairs'])} TOPKIDS pairs (real topological noise): mean "
+        f"error × 100 / √area | {td['ours_dense']['mean']:.2f} | {td['pyfm_dense']['mean']:.2f} "
+        "(pyFM, functional maps + ZoomOut) |",
+        f"| dense map, {len(dense['tosca']['pairs'])} clean TOSCA pairs: the same | "
+        f"{tt['ours_dense']['mean']:.2f} | {tt['pyfm_dense']['mean']:.2f} (pyFM) |",
+        f"| farthest point sampling, {big['points']:,} points → {big['samples']:,} | "
+        f"{_secs(big['ours_s'])} | {_secs(big['fpsample_vanilla_s'])} / "
+        f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
+    ]
+    return "\n".join(rows)
+
+
+FOUNDATION_LABELS = {
+    "gromov fmm (ours)": "gromov fast marching (ours)",
+    "gromov fmm refine=1": "ours, `refine=1` (every triangle split in four once)",
+    "gromov fmm refine=2": "ours, `refine=2` (split twice)",
+    "potpourri3d heat": "potpourri3d heat method",
+    "potpourri3d fmm": "potpourri3d fast marching (geometry-central)",
+}
+
+
+def foundation_table(r: dict) -> str:
+    """Geodesic distances between all pairs of vertices: time and error of each method."""
+    g = r["geodesic_all_pairs"]
+    ours = g["gromov fmm (ours)"]["seconds"]
+    rows = ["| method | time | vs ours | mean rel. error | max rel. error |",
+            "|---|---:|---:|---:|---:|"]
+    for key, label in FOUNDATION_LABELS.items():
+        e = g[key]
+        rows.append(f"| {label} | {_secs(e['seconds'])} | {e['ratio_to_ours']:.2f}× | "
+                    f"{_pct(e['mean_rel_err'])} | {_pct(e['max_rel_err'])} |")
+    exact = g["exact_seconds_extrapolated"]
+    rows.append(f"| exact MMP (pygeodesic), extrapolated from {g['sources']} sources | {_secs(exact)} | "
+                f"{exact / ours:.2f}× | 0 | 0 |")
+    return "\n".join(rows)
+
+
+def foundation_steps(r: dict) -> str:
+    """The other set-up steps of the foundation benchmark."""
+    d, ls = r["diffusion"], r["load_simplify"]
+    return "\n".join([
+        "| step | gromov | reference |",
+        "|---|---:|---:|",
+        f"| graph diffusion distances, all pairs ({d['graph_eigenpairs']} eigenpairs; max rel. error "
+        f"{d['graph_max_rel_err_vs_dense']:.1e}) | {_secs(d['graph_spectral_seconds'])} | "
+        f"{_secs(d['graph_dense_seconds'])} (dense eigendecomposition) |",
+        f"| heat-kernel diffusion distances, all pairs | {_secs(d['heat_seconds'])} | – |",
+        f"| load a {ls['n_vertices']:,}-vertex OFF file | {_secs(ls['load_seconds'])} | "
+        f"{_secs(ls['trimesh_load_seconds'])} (trimesh) |",
+        f"| simplify it to {ls['working_vertices']:,} vertices | {_secs(ls['simplify_seconds'])} | – |",
+    ])
+
+
+def match_table(r: dict) -> str:
+    """bench_match.py: error of each pair's sample images ÷ diameter (better reading)."""
+    rows = ["| pair | geodesic, GMDS | geodesic, GW (POT) | diffusion, GMDS | diffusion, GW (POT) |",
+            "|---|---:|---:|---:|---:|"]
+    keys = [(m, s) for m in METRICS for s in ("gmds", "gw")]
+    for p in PAIRS:
+        cells = []
+        for m, s in keys:
+            a = r["accuracy"][f"{p}/{m}/{s}"]
+            cells.append(_num(a["best"], 4) + (" (mirrored)" if a["branch"] == "mirrored" else ""))
+        rows.append(f"| {p.replace('-', ' → ')} | " + " | ".join(cells) + " |")
+    rows.append("| mean | " + " | ".join(_num(_match_mean(r, m, s), 4) for m, s in keys) + " |")
+    return "\n".join(rows)
+
+
+def match_speed(r: dict) -> str:
+    """bench_match.py's timings."""
+    s = r["speed"]
+    return "\n".join([
+        "| timing | seconds |",
+        "|---|---:|",
+        f"| `gromov.match`, cat0 → cat1, geodesic, metrics prepared, one thread | {s['match_seconds']:.3f} |",
+        f"| the same with `search_vertices=500` | {s['match_search500_seconds']:.3f} |",
+        f"| POT `gromov_wasserstein` on the same two sample matrices | {s['pot_gw_seconds']:.4f} |",
+        f"| `gromov match cat0.off.gz cat1.off.gz` as a new process, diffusion (default) | "
+        f"{s['end_to_end_diffusion_seconds']:.2f} |",
+        f"| the same with `--metric geodesic` | {s['end_to_end_geodesic_seconds']:.2f} |",
+    ])
+
+
+DENSE_LABELS = (("ours_samples", "ours, at our samples"), ("ours_dense", "**ours, dense**"),
+                ("pyfm_samples", "pyFM, at our samples"), ("pyfm_dense", "pyFM, dense"))
+
+
+def dense_table(ours: dict, placed: dict, ds: str) -> str:
+    """bench_dense.py on one data set: the dense map beside pyFM's (and without ZoomOut)."""
+    rows = ["| map | mean | median | mean, direct | gross | s / pair |", "|---|---|---|---|---|---|"]
+    for key, label in DENSE_LABELS:
+        r = ours[ds]["summary"][key]
+        rows.append(f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
+                    f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
+    r = placed[ds]["summary"]["ours_dense"]
+    rows.append(f"| ours, dense, placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} | "
+                f"{r['mean_direct']:.2f} | {r['gross']} | |")
+    return "\n".join(rows)
+
+
+def cloud_sampling_table(r: dict) -> str:
+    """bench_cloud_sampling.py: Euclidean farthest point sampling of large clouds."""
+    rows = ["| random normal cloud → samples | ours | general loop | fpsample vanilla | fpsample QuickFPS "
+            "| ours / vanilla | ours / QuickFPS |", "|---|---:|---:|---:|---:|---:|---:|"]
+    for c in r["rows"]:
+        rows.append(f"| {c['points']:,} points → {c['samples']:,} | {_secs(c['ours_s'])} | "
+                    f"{_secs(c['ours_general_loop_s'])} | {_secs(c['fpsample_vanilla_s'])} | "
+                    f"{_secs(c['fpsample_quickfps_s'])} | {c['ours_s'] / c['fpsample_vanilla_s']:.2f} | "
+                    f"{c['ours_s'] / c['fpsample_quickfps_s']:.1f} |")
+    return "\n".join(rows)
+
+
+def point_clouds_table(r: dict) -> str:
+    """bench_point_clouds.py: the same pairs matched as meshes, as clouds, as half clouds."""
+    names = [p.split("-")[0].rstrip("0123456789") for p in PAIRS]
+    rows = ["| best error | " + " | ".join(names) + " | mean | s per match |",
+            "|---|" + "---:|" * (len(PAIRS) + 2)]
+    for m in ("diffusion", "geodesic"):
+        for kind, label in (("mesh", "meshes"), ("cloud", "clouds"), ("half cloud", "half clouds")):
+            cells = [r["rows"][f"{p}/{m}/{kind}"] for p in PAIRS]
+            secs = [c["seconds"] for c in cells]
+            rows.append(f"| {m}, {label} | " + " | ".join(_num(c["best"], 4) for c in cells)
+                        + f" | {_num(r['mean_best'][f'{m}/{kind}'], 4)} | {min(secs):.1f}–{max(secs):.1f} |")
+    return "\n".join(rows)
+
+
+def benchmark_tables() -> list[tuple[str, str]]:
+    """Every benchmark table of docs/benchmarks.md, each with the results file it reads."""
+    f, m = load("foundation.json"), load("match.json")
+    dense, placed = load("dense.json"), load("dense-placed.json")
+    return [("foundation.json", foundation_table(f)), ("foundation.json", foundation_steps(f)),
+            ("match.json", match_table(m)), ("match.json", match_speed(m)),
+            ("dense.json, dense-placed.json", dense_table(dense, placed, "topkids")),
+            ("dense.json, dense-placed.json", dense_table(dense, placed, "tosca")),
+            ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
+            ("point_clouds.json", point_clouds_table(load("point_clouds.json")))]
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("files", nargs="*", type=Path, default=DEFAULT)
+    p.add_argument("files", nargs="*", type=Path, default=None)
     a = p.parse_args(argv)
-    for f in a.files:
+    for f in a.files or DEFAULT:
         r = json.loads(f.read_text())
-        print(f"### {f}  ({r.get('date', '?')}, {r.get('seconds_total', '?')} s)")
-        print(f"`{r.get('command', '?')}`\n")
+        print(f"### {f.relative_to(HERE.parent.parent) if f.is_relative_to(HERE.parent.parent) else f}")
+        print(caption(r) + "\n")
         print(table(r))
         print()
         print(errors(r))
         print()
+    if a.files:
+        return
+    print("### anchors (foundation.json, match.json, dense.json, cloud_sampling.json)\n")
+    print(anchors_table() + "\n")
+    for name, tab in benchmark_tables():
+        print(f"### {name}\n")
+        print(tab + "\n")
 
 
 if __name__ == "__main__":

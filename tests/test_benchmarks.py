@@ -1,4 +1,5 @@
-"""The diagnostic scripts under benchmarks/ compute what they say (no timings here)."""
+"""The diagnostic scripts under benchmarks/ compute what they say (no timings here), and the
+result tables of the README and of docs/benchmarks.md are the committed results files'."""
 
 import importlib.util
 import sys
@@ -140,21 +141,129 @@ def test_weld_contact_pinch_merges_and_keeps_input_ids():
     assert w.euler_characteristic == m.euler_characteristic - 1
 
 
+README = BENCH.parent / "README.md"
+BENCHMARKS_PAGE = BENCH.parent / "docs" / "benchmarks.md"
+
+
+def _json(name):
+    import json
+
+    return json.loads((BENCH / "results" / name).read_text())
+
+
 def test_readme_tables_are_the_committed_results():
-    """The README's result tables are printed from the committed results files, not typed:
-    each is in the README as printed, and its cells are the files' values."""
+    """The result tables of the README and of docs/benchmarks.md are printed from the committed
+    results files, not typed: each is on its page as printed, with the command that made it,
+    and its cells are the files' values."""
     import json
 
     rt = _module("readme_tables")
-    readme = (BENCH.parent / "README.md").read_text()
+    readme, page = README.read_text(), BENCHMARKS_PAGE.read_text()
+    paper_run = rt.DEFAULT[0]
+    assert paper_run.parent.name == "reproduce-tosca"
     for path in rt.DEFAULT:
         r = json.loads(path.read_text())
         tab = rt.table(r)
-        assert tab in readme, f"README's table for {path.parent.name} is not what {path} gives"
+        pages = [page] + ([readme] if path == paper_run else [])
+        for text in pages:
+            assert tab in text, f"a page's table for {path.parent.name} is not what {path} gives"
+            assert rt.caption(r) in text.replace("\n", " "), rt.caption(r)
+        assert rt.errors(r) in page
         eer_row = next(line for line in tab.splitlines() if line.startswith("| EER, Experiment 1"))
         cells = [c.strip() for c in eer_row.strip("|").split("|")]
         assert cells[1] == rt._pct(r["eer.weld.geodesic"]) and cells[2] == rt._pct(r["eer.weld.diffusion"])
+        # the recorded command, its output folder named by its last component only
+        assert rt.command(r).startswith("gromov reproduce") and "/tmp" not in rt.command(r)
+        assert f"{r['seconds_total']:.0f} s" in rt.caption(r)
     assert rt._pct(0.0675) == "6.75%" and rt._pct(0.2232) == "22.3%" and rt._pct(0.0) == "0.0%"
+    assert rt.command({"command": "gromov reproduce --out /x/y/run -q"}) == "gromov reproduce --out run -q"
+
+
+def test_readme_claims_about_the_paper_run_hold():
+    """What the README says of its table against the paper, checked on the results file."""
+    from gromov.experiments.report import PAPER
+
+    r = _json("reproduce-tosca/results.json")
+    rec, cor = r["recognition"], r["correspondence"]
+    readme = " ".join(README.read_text().split())
+    assert "are better than the paper's with and without topology changes" in readme
+    for cond in ("clean", "weld", "holes"):
+        paper = PAPER["correspondence"]["diffusion"]["clean" if cond == "clean" else "topology"]
+        assert cor["diffusion"][cond] < paper and cor["diffusion"][cond + "_direct"] < paper, cond
+    assert "diffusion beats geodesics in every EER and d(C, C0) row" in readme
+    for exp in ("weld", "holes"):
+        for key in ("eer", "eer_gh", "eer_local"):
+            assert rec[exp]["diffusion"][key] < rec[exp]["geodesic"][key], (exp, key)
+        for m in ("geodesic", "diffusion"):   # "its equal error rates are above the paper's"
+            assert rec[exp][m]["eer"] > PAPER["eer"][exp][m], (exp, m)
+        errors = rec[exp]["diffusion"]["errors_at_eer"]
+        assert set(errors["false_accept"]) == {"david / victoria"}, errors
+    for cond in ("clean", "weld", "holes"):
+        for reading in (cond, cond + "_direct"):
+            assert cor["diffusion"][reading] < cor["geodesic"][reading], reading
+    t = r["topkids"]
+    for key in ("correspondence", "correspondence_direct"):
+        assert t["diffusion"][key] < t["geodesic"][key], key
+    assert "every false acceptance at the diffusion threshold is a david ↔ victoria pair" in readme
+
+
+def test_anchor_table_is_the_results_files():
+    """The README's table against the anchors, row by row from the four results files."""
+    import numpy as np
+
+    rt = _module("readme_tables")
+    tab = rt.anchors_table()
+    assert tab in README.read_text() and tab in BENCHMARKS_PAGE.read_text()
+    rows = tab.splitlines()[2:]
+    g = _json("foundation.json")["geodesic_all_pairs"]
+    ours, heat = g["gromov fmm (ours)"], g["potpourri3d heat"]
+    assert f"| {ours['seconds']:.2f} s; {100 * ours['mean_rel_err']:.2f}% / {100 * ours['max_rel_err']:.2f}%" in rows[0]
+    assert f"| {heat['seconds']:.2f} s; {100 * heat['mean_rel_err']:.2f}% / {100 * heat['max_rel_err']:.1f}%" in rows[0]
+    acc = _json("match.json")["accuracy"]
+    pairs = ("cat0-cat1", "dog0-dog1", "david0-david1", "victoria0-victoria1")
+    gmds = np.mean([acc[f"{p}/diffusion/gmds"]["best"] for p in pairs])
+    gw = np.mean([acc[f"{p}/diffusion/gw"]["best"] for p in pairs])
+    assert f"| {gmds:.4f} (GMDS) | {gw:.4f} (POT" in rows[1] and gmds < gw
+    speed = _json("match.json")["speed"]
+    assert f"| {speed['match_seconds']:.2f} s | {1000 * speed['pot_gw_seconds']:.1f} ms (POT) |" in rows[2]
+    dense = _json("dense.json")
+    for row, ds in ((rows[3], "topkids"), (rows[4], "tosca")):
+        s = dense[ds]["summary"]
+        assert f"| {s['ours_dense']['mean']:.2f} | {s['pyfm_dense']['mean']:.2f} " in row, row
+    assert len(dense["topkids"]["pairs"]) == 25 and "25 TOPKIDS pairs" in rows[3]
+    big = _json("cloud_sampling.json")["rows"][-1]
+    assert big["points"] == 1_000_000
+    assert (f"| {big['ours_s']:.2f} s | {big['fpsample_vanilla_s']:.2f} s / {big['fpsample_quickfps_s']:.2f} s"
+            in rows[5])
+
+
+def test_benchmark_page_tables_are_the_results_files():
+    """Every table of docs/benchmarks.md is on the page as readme_tables prints it, and a cell
+    of each is checked against its file independently of the printer."""
+    import numpy as np
+
+    rt = _module("readme_tables")
+    page = BENCHMARKS_PAGE.read_text()
+    tables = rt.benchmark_tables()
+    assert len(tables) == 8
+    for name, tab in tables:
+        assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
+    foundation, steps, match_acc, match_speed, _, _, sampling, clouds = (t for _, t in tables)
+    g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
+    assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
+    d = _json("foundation.json")["diffusion"]
+    assert f"| {d['graph_spectral_seconds']:.2f} s | {d['graph_dense_seconds']:.2f} s" in steps
+    acc = _json("match.json")["accuracy"]
+    pairs = ("cat0-cat1", "dog0-dog1", "david0-david1", "victoria0-victoria1")
+    means = [np.mean([acc[f"{p}/{m}"]["best"] for p in pairs])
+             for m in ("geodesic/gmds", "geodesic/gw", "diffusion/gmds", "diffusion/gw")]
+    assert "| mean | " + " | ".join(f"{x:.4f}" for x in means) + " |" in match_acc
+    assert f"| {_json('match.json')['speed']['end_to_end_geodesic_seconds']:.2f} |" in match_speed
+    row = _json("cloud_sampling.json")["rows"][0]
+    assert f"| {row['ours_s'] / row['fpsample_vanilla_s']:.2f} |" in sampling
+    pc = _json("point_clouds.json")
+    assert f"| {pc['mean_best']['diffusion/cloud']:.4f} |" in clouds
+    assert f"| {pc['rows']['victoria0-victoria1/geodesic/half cloud']['best']:.4f} |" in clouds
 
 
 def test_cloud_sampling_benchmark_compares_like_with_like():
@@ -167,21 +276,21 @@ def test_cloud_sampling_benchmark_compares_like_with_like():
         assert abs(r["radius_fpsample_vanilla"] / r["radius_ours"] - 1) < 0.2
 
 
-def test_readme_dense_tables_are_the_results_files():
-    """The README's dense-map tables hold bench_dense.py's numbers (both results files)."""
-    import json
-
-    readme = (BENCH.parent / "README.md").read_text()
-    ours = json.loads((BENCH / "results" / "dense.json").read_text())
-    placed = json.loads((BENCH / "results" / "dense-placed.json").read_text())
+def test_dense_tables_are_the_results_files():
+    """docs/benchmarks.md's dense-map tables hold bench_dense.py's numbers (both results files)."""
+    page = BENCHMARKS_PAGE.read_text()
+    ours, placed = _json("dense.json"), _json("dense-placed.json")
     for ds in ("topkids", "tosca"):
         for key, label in (("ours_samples", "ours, at our samples"), ("ours_dense", "**ours, dense**"),
                            ("pyfm_samples", "pyFM, at our samples"), ("pyfm_dense", "pyFM, dense")):
             r = ours[ds]["summary"][key]
             row = (f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
                    f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
-            assert row in readme, row
+            assert row in page, row
         r = placed[ds]["summary"]["ours_dense"]
-        assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in readme
-    cost = json.loads((BENCH / "results" / "dense_cost.json").read_text())
-    assert f"it adds {cost['added_s']:.2f} s to a" in readme.replace("\n", " ")
+        assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in page
+    cost = _json("dense_cost.json")
+    flat = page.replace("\n", " ")
+    assert f"it adds {cost['added_s']:.2f} s to a {cost['seconds']['sparse']:.2f} s match" in flat
+    placed_s = cost["seconds"]["placed"] - cost["seconds"]["sparse"]
+    assert f"({placed_s:.2f} s without ZoomOut)" in flat

@@ -26,7 +26,7 @@ from .metrics import (
 from .resolution import WorkingMesh, simplify, working_mesh
 from .sampling import Samples, farthest_point_sampling
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
     "GromovError", "GromovWarning", "MeshError", "MeshFormatError", "MetricError",

@@ -107,7 +107,7 @@ class ShapeMetric:
     shape : Mesh, PointCloud, str, os.PathLike, (vertices, faces), (n, 3) array or a mesh object
         The input mesh or point cloud, a file to load, or arrays / a mesh or point-cloud
         object (``trimesh.Trimesh``...) read by :func:`gromov.mesh.as_shape`.
-    metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
+    metric : {"diffusion", "geodesic", "euclidean"}, default "diffusion"
     resolution : int or None, default 3000
         Working mesh size (None: the input mesh as it is). A point cloud's working set is that
         many of its points (:func:`gromov.resolution.working_cloud`: farthest points in space).
@@ -1009,7 +1009,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     X, Y : Mesh, PointCloud, path, (vertices, faces), (n, 3) array, trimesh.Trimesh or ShapeMetric
         A :class:`ShapeMetric` reuses its metric. With a point cloud on either side the map is
         the search's discrete one: images at points (face -1, NaN barycentrics).
-    metric : {"geodesic", "diffusion", "euclidean"}, default "diffusion"
+    metric : {"diffusion", "geodesic", "euclidean"}, default "diffusion"
     n_samples : int, default 100
         Farthest point samples per shape.
     norm : {"l2", "linf"} or "p:VALUE", default "l2"

@@ -50,7 +50,7 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
     Parameters
     ----------
     shape : Mesh or PointCloud
-    metric : {"geodesic", "diffusion", "euclidean"}
+    metric : {"diffusion", "geodesic", "euclidean"}, default "diffusion"
     **options
         Passed to the solver. ``geodesic``: ``method`` ("fmm", "heat", "exact",
         "dijkstra"), ``k``, ``refine`` (fast marching on a subdivided copy, more accurate). ``diffusion``: ``kernel`` ("connectivity" -- the paper's --,
