@@ -425,10 +425,16 @@ def test_parallel_coarse_starts_equal_one_start_after_the_other():
     DX, DY = _random_metric(40, 5), _random_metric(250, 6)
     dx = np.ascontiguousarray(DX[:12, :12])
     cand = np.array([3, 0, 249, 77, 77, 120, 5, 31, 200, 64, 18], np.int64)
-    imgs, costs = K.coarse_starts(dx, DY, cand, 20)
-    # the parallel kernel itself (coarse_starts takes it only with more than one thread)
-    pimgs, pcosts = np.empty_like(imgs), np.empty_like(costs)
-    K._coarse_parallel(dx, DY, cand, 20, pimgs, pcosts, 3, K._NO_COST)
+    import numba
+
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)          # one after the other
+        imgs, costs = K.coarse_starts(dx, DY, cand, 20)
+        numba.set_num_threads(max(2, threads) if numba.config.NUMBA_NUM_THREADS > 1 else 1)
+        pimgs, pcosts = K.coarse_starts(dx, DY, cand, 20)   # handed out to threads
+    finally:
+        numba.set_num_threads(threads)
     np.testing.assert_array_equal(pimgs, imgs)
     np.testing.assert_array_equal(pcosts, costs)
     R, C = np.empty((12, 250)), np.empty((12, 250))

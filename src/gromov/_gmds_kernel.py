@@ -24,7 +24,9 @@ the points never increases the total distortion (block coordinate descent).
 from __future__ import annotations
 
 import numpy as np
-from numba import get_num_threads, njit, parallel_chunksize, prange
+from numba import get_num_threads, njit
+
+from ._arrays import readonly
 
 __all__ = ["face_neighbours", "sweep", "pair_distances"]
 
@@ -568,27 +570,36 @@ def coarse_starts(dx, DY, candidates, max_sweeps, U=None):
     images ``(s, m)`` and their summed squared distortions ``(s,)`` (plus their per-image costs
     ``U``, if given).
 
-    The candidates are independent: with more than one numba thread they run in parallel
-    (each chunk with its own work arrays), with the same results as one after the other.
-    With one thread no parallel kernel is entered: the forked workers of
-    :mod:`gromov.experiments.pairwise` run with one thread, and numba's threading layer (GNU
-    OpenMP here) aborts a forked child that enters it once the parent has used it.
+    The candidates are independent: with more than one numba thread
+    (``numba.get_num_threads()``) they are handed out one by one to that many Python threads
+    running the compiled kernel without the GIL, with the same results as one after the
+    other. Threads rather than a ``prange`` loop: the parallel kernel took most of the
+    first run's compilation (45 of 69 s of a first ``gromov.match``), and it is never entered
+    in a forked worker of :mod:`gromov.experiments.pairwise`, which numba's OpenMP layer
+    aborts.
     """
     candidates = np.asarray(candidates, dtype=np.int64)
+    DY = readonly(DY)   # one compilation, whether a shape's matrix or a slice of it
     s = len(candidates)
     imgs = np.empty((s, dx.shape[0]), np.int64)
     costs = np.empty(s)
     U = _NO_COST if U is None else np.ascontiguousarray(U, dtype=np.float64)
-    threads = get_num_threads()
-    if threads > 1 and s > 1:
-        with parallel_chunksize(1):  # chunks handed out one by one: their costs differ
-            _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, min(s, 4 * threads), U)
+    threads = min(get_num_threads(), s)
+    if threads > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        def one(q):   # candidate q alone (their costs differ: handed out one by one)
+            _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, q, s, U)
+
+        with ThreadPoolExecutor(threads) as pool:
+            for _ in pool.map(one, range(s)):
+                pass
     else:
         _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1, U)
     return imgs, costs
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step, U):
     """Candidates ``first, first + step, ...`` of :func:`coarse_starts`, into ``imgs, costs``."""
     m = dx.shape[0]
@@ -601,12 +612,6 @@ def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step, U):
         img, f = _place_and_descend(dx, DY, start, max_sweeps, R, C, U, 16, 32, 2.0)
         imgs[q] = img
         costs[q] = f
-
-
-@njit(cache=True, parallel=True)
-def _coarse_parallel(dx, DY, candidates, max_sweeps, imgs, costs, nchunks, U):
-    for ch in prange(nchunks):
-        _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, ch, nchunks, U)
 
 
 def place_and_descend_blas(dx, DY, start, max_sweeps, R, C, *, block=16, cap=32, ratio=2.0):

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._arrays import readonly
+
 __all__ = ["closest_point_barycentric", "project_among"]
 
 
@@ -160,9 +162,9 @@ def project_among(points: np.ndarray, mesh, cand_ptr: np.ndarray, cand_ids: np.n
     if len(ids) and (ids.min() < 0 or ids.max() >= mesh.n_vertices):
         raise ValueError(f"candidate vertex ids must be in 0..{mesh.n_vertices - 1}")
     vf_ptr, vf_ids = mesh.vertex_faces
-    face, bary, dist = _project_among(points, np.ascontiguousarray(mesh.vertices, dtype=np.float64),
-                                      np.ascontiguousarray(mesh.faces, dtype=np.int64),
-                                      vf_ptr, vf_ids, ptr, ids)
+    face, bary, dist = _project_among(*(readonly(a) for a in (
+        points, np.ascontiguousarray(mesh.vertices, dtype=np.float64),
+        np.ascontiguousarray(mesh.faces, dtype=np.int64), vf_ptr, vf_ids, ptr, ids)))
     if len(face) and face.min() < 0:
         i = int(np.argmin(face))
         raise ValueError(f"point {i} has no candidate vertex with a face")
