@@ -3,7 +3,9 @@
 All I/O lives here, with one reader and one writer per format in the registry
 :data:`FORMATS` (extension -> :class:`FileFormat`), so adding a format means adding one
 entry. Any file may be gzip-compressed: a name ending in ``.gz`` (``cat0.off.gz``) is
-decompressed on reading and compressed on writing.
+decompressed on reading and compressed on writing. Decompression streams and stops at a
+limit (see :data:`GZIP_RATIO` and ``load(..., max_decompressed=)``), so a small file that
+inflates to gigabytes (a gzip bomb) is refused in a fraction of a second.
 
 Design choices
 --------------
@@ -13,14 +15,21 @@ Design choices
   anything, and the result's ``input_ids`` map back to the file's 0-based vertex numbers.
 * **Strict parsing.** Every reader is our own small numpy parser (fast path:
   ``numpy.loadtxt``'s C tokenizer; on any irregularity a line-by-line pass finds the
-  culprit and names its line). trimesh 5.2 was evaluated and not used for reading: with
+  culprit and names its line). Numbers are ASCII decimal literals (``inf``/``nan`` are
+  read, then refused as coordinates): Python's ``float`` would also take ``1_000`` and
+  non-ASCII (e.g. Arabic-Indic) digits, which are refused, as is any non-numeric token
+  on a vertex or face line. A coordinate that overflows float64 (``1e400``) is an error,
+  as is one beyond :data:`MAX_COORDINATE` (1e75), and so is a PLY value that does not fit its declared type (``nan`` or ``300`` in a
+  ``uchar`` property): values are checked before they are cast, never wrapped.
+  trimesh 5.2 was evaluated and not used for reading: with
   ``process=False`` it silently accepts truncated OFF/ASCII-PLY/ASCII-STL files (fewer
   faces than the header says, or an empty ``Scene``), maps OBJ index ``0`` to a wrong
   vertex, drops 2-vertex OBJ faces, reorders faces of mixed triangle/quad PLY files,
   writes PLY vertices as float32 and fails on a truncated binary STL with an unrelated
   ``ModuleNotFoundError``.
 * **Errors.** Every problem with a file raises :class:`~gromov.errors.MeshFormatError`
-  whose message starts with the file name; a missing file raises
+  whose message starts with the file name, says where (line, record, property or
+  coordinate) and quotes at most 60 characters of the offending input; a missing file raises
   :class:`MeshFileNotFoundError`, which is both a ``MeshFormatError`` and a
   ``FileNotFoundError``; a format whose optional package is not installed raises
   :class:`MissingDependencyError`, both a ``MeshFormatError`` and an ``ImportError``.
@@ -64,7 +73,11 @@ MATLAB ``.mat``
     [, ``TRIV``] at the top level of the file are read alike. Several such structs in one
     file are an error (the message names them). Versions 4 to 7 are read with
     :func:`scipy.io.loadmat`; version 7.3 files are HDF5, which scipy cannot read, and are
-    rejected with a message saying so. Written as a version 5 file holding a struct
+    rejected with a message saying so. The element tags of a version 5 file are checked
+    first: on a data element of an unknown type scipy 1.17 crashes the interpreter, so such
+    files, arrays of other classes than numbers, characters, cells and structs (function
+    handles, objects), nesting deeper than 32 levels and compressed variables over the
+    decompression limit are refused. Written as a version 5 file holding a struct
     ``surface`` with float64 ``X``, ``Y``, ``Z`` and ``TRIV`` (as TOSCA's files do): exact.
 VTK ``.vtk``/``.vtu``, Gmsh ``.msh``, Medit ``.mesh`` (optional, meshio)
     Vertices are meshio's points (2-D points get z = 0); faces are the ``triangle``,
@@ -109,7 +122,7 @@ from .errors import GromovWarning, MeshError, MeshFormatError
 from .mesh import Mesh, PointCloud
 
 __all__ = ["load", "save", "FORMATS", "FileFormat", "MeshFileNotFoundError",
-           "MissingDependencyError"]
+           "MissingDependencyError", "GZIP_RATIO", "GZIP_FLOOR", "MAX_COORDINATE"]
 
 logger = logging.getLogger(__name__)
 
@@ -140,6 +153,61 @@ _PARSE_ERRORS = (ValueError, IndexError, KeyError, TypeError, OverflowError, str
 
 def _err(name: str, problem: str) -> MeshFormatError:
     return MeshFormatError(f"{name}: {problem}")
+
+
+#: Most characters of the input that a message quotes.
+_QUOTE_CHARS = 60
+
+
+def _q(text: str | bytes) -> str:
+    """``repr`` of ``text`` (stripped), cut to 60 characters with its length
+    said: a message quotes the offending input, never all of a megabyte-long line."""
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", errors="replace")
+    text = text.strip()
+    if len(text) <= _QUOTE_CHARS:
+        return repr(text)
+    return f"{text[:_QUOTE_CHARS]!r}... ({len(text)} characters)"
+
+
+# Numbers as the formats write them: ASCII decimal literals (`re.ASCII`: \d is 0-9 only).
+# Python's float()/int() also accept "1_000" and non-ASCII digits; those tokens are refused.
+# Possessive quantifiers (++, *+, ?+): a 10^6-digit token that ends in a letter fails in
+# linear time, where backtracking over the split of its digits would take quadratic time.
+_FLOAT = r"[+-]?+(?:(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][+-]?+\d++)?+|(?i:infinity|inf|nan))"
+_FLOAT_RE = re.compile(_FLOAT, re.ASCII)
+_INT_RE = re.compile(r"[+-]?+\d++", re.ASCII)
+_COUNT_RE = re.compile(r"\d++", re.ASCII)
+# Face indices beyond this are out of range of any mesh (and of int64 arithmetic)
+_MAX_INDEX = 2**53
+_XYZ_FIELDS = ("coordinate x", "coordinate y", "coordinate z")
+
+
+def _is_float(tok: str) -> bool:
+    return _FLOAT_RE.fullmatch(tok) is not None
+
+
+def _field(fields: Sequence[str], c: int) -> str:
+    return fields[c] if c < len(fields) else f"value {c + 1}"
+
+
+def _cut(text: str, n: int = 2 * _QUOTE_CHARS) -> str:
+    """``text`` on one line, cut to ``n`` characters (another library's message, which may
+    quote the file)."""
+    text = " ".join(text.split())
+    return text if len(text) <= n else text[:n] + "..."
+
+
+def _library_error(exc: BaseException, own: tuple[type[BaseException], ...],
+                   file: str | None = None, name: str | None = None) -> str:
+    """What a third-party reader said about a file: its own error class and message (cut
+    short), or, for an internal failure of that library (``IndexError``...), only that the
+    content is malformed -- never Python's text about the library's internals."""
+    if not isinstance(exc, own):
+        logger.debug("reader failed with %s: %s", type(exc).__name__, _cut(str(exc)))
+        return "malformed content"
+    msg = str(exc) if file is None else str(exc).replace(file, name)
+    return f"{type(exc).__name__}: {_cut(msg)}" if msg.strip() else type(exc).__name__
 
 
 # --------------------------------------------------------------------------- raw shape
@@ -178,9 +246,21 @@ def _decode(data: bytes) -> str:
     return data.decode("utf-8", errors="replace")
 
 
+_OTHER_LINE_BREAKS = "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"
+_LINE_BREAK = re.compile(r"\r\n|\r|\n")
+
+
+def _split_lines(text: str) -> list[str]:
+    """Lines ended by ``\\n``, ``\\r\\n`` or ``\\r``, as an editor numbers them
+    (``str.splitlines`` also breaks at form feeds, ``\\x1c``, ``\\u2028``...)."""
+    if not any(c in text for c in _OTHER_LINE_BREAKS):  # (8 scans beat one regex 10 times)
+        return text.splitlines()
+    return _LINE_BREAK.split(text)
+
+
 def _content_lines(text: str, comment: str | None = "#") -> tuple[list[str], list[int]]:
     """Lines with comments stripped and blank lines dropped, plus their 1-based numbers."""
-    lines = text.splitlines()
+    lines = _split_lines(text)
     if comment is not None and comment in text:
         lines = [ln.partition(comment)[0] for ln in lines]
     nums = [i for i, ln in enumerate(lines, 1) if ln and not ln.isspace()]
@@ -189,43 +269,70 @@ def _content_lines(text: str, comment: str | None = "#") -> tuple[list[str], lis
 
 
 def _loadtxt(rows: list[str], dtype=np.float64) -> np.ndarray | None:
-    """``numpy.loadtxt`` on whitespace-separated rows, or ``None`` if they are irregular."""
+    """``numpy.loadtxt`` on whitespace-separated rows, or ``None`` if they are irregular.
+
+    Its C parser reads ASCII decimal literals only (no ``1_000``, no non-ASCII digits) and
+    skips blank rows: callers compare the row count."""
+    if not any(map(str.strip, rows)):  # (loadtxt would warn: no data)
+        return None
     try:
         return np.loadtxt(rows, dtype=dtype, ndmin=2, comments=None)
-    except ValueError:
+    except (ValueError, OverflowError):
         return None
 
 
-def _parse_int(tok: str) -> int:
-    """An integer token; ``"3.0"`` is accepted, ``"3.5"``/``"nan"`` raise ``ValueError``."""
-    try:
-        return int(tok)
-    except ValueError:
+def _int_or_none(tok: str) -> int | None:
+    """The integer a token spells (``"3.0"`` too), or ``None`` (``"3.5"``, ``"nan"``,
+    ``"1_000"``...). Magnitudes beyond :data:`_MAX_INDEX` come back as +-``_MAX_INDEX``."""
+    if _INT_RE.fullmatch(tok):
+        if len(tok) < 18:
+            return int(tok)
+        return -_MAX_INDEX if tok[0] == "-" else _MAX_INDEX
+    if _FLOAT_RE.fullmatch(tok):
         f = float(tok)
-        if not f.is_integer():
-            raise
-        return int(f)
+        if f.is_integer():  # False for nan and inf
+            return int(max(min(f, _MAX_INDEX), -_MAX_INDEX))
+    return None
 
 
 def _float_rows(rows: list[str], nums: Sequence[int], name: str, what: str, ncols: int,
-                exact: bool) -> np.ndarray:
-    """Parse ``rows`` of at least (or, if ``exact``, exactly) ``ncols`` numbers; first ``ncols``."""
+                exact: bool, fields: Sequence[str] = _XYZ_FIELDS) -> np.ndarray:
+    """Parse ``rows`` of at least (or, if ``exact``, exactly) ``ncols`` numbers; first ``ncols``.
+
+    Every token must be a number (extra values are read, then ignored); ``fields`` name the
+    columns in messages."""
     a = _loadtxt(rows)
     if a is not None and a.shape[0] == len(rows) and (
             a.shape[1] == ncols if exact else a.shape[1] >= ncols):
-        return a[:, :ncols]
-    out = np.empty((len(rows), ncols))
-    for r, (row, line) in enumerate(zip(rows, nums)):
-        toks = row.split()
-        if len(toks) < ncols or (exact and len(toks) != ncols):
-            raise _err(name, f"line {line}: {what} needs {'exactly ' if exact else ''}{ncols} "
-                             f"values, found {len(toks)}: {row.strip()!r}")
-        for c, tok in enumerate(toks[:ncols]):
-            try:
-                out[r, c] = float(tok)
-            except ValueError:
-                raise _err(name, f"line {line}: non-numeric value {tok!r} in {what}") from None
-    return out
+        a = a[:, :ncols]
+    else:
+        a = np.empty((len(rows), ncols))
+        for r, (row, line) in enumerate(zip(rows, nums)):
+            toks = row.split()
+            for c, tok in enumerate(toks):
+                if not _is_float(tok):
+                    raise _err(name, f"line {line}: non-numeric value {_q(tok)} in {what}, "
+                                     f"{_field(fields, c)}")
+            if len(toks) < ncols or (exact and len(toks) != ncols):
+                raise _err(name, f"line {line}: {what} needs {'exactly ' if exact else ''}"
+                                 f"{ncols} values, found {len(toks)}: {_q(row)}")
+            a[r] = [float(t) for t in toks[:ncols]]
+    _check_overflow(a, rows, nums, name, what, fields)
+    return a
+
+
+def _check_overflow(a: np.ndarray, rows: list[str], nums: Sequence[int], name: str, what: str,
+                    fields: Sequence[str]) -> None:
+    """Refuse a finite literal that overflowed to infinity (``1e400``). ``inf``/``nan``
+    literals pass here and are refused as coordinates by :func:`_finish`."""
+    inf = np.isinf(a)
+    if not inf.any():
+        return
+    r, c = (int(x[0]) for x in np.nonzero(inf))
+    tok = rows[r].split()[c]
+    if tok.lstrip("+-").lower() not in ("inf", "infinity"):
+        raise _err(name, f"line {nums[r]}: {what}, {_field(fields, c)}: {_q(tok)} overflows "
+                         "float64 (largest finite value about 1.8e308)")
 
 
 def _polygon_rows(rows: list[str], nums: Sequence[int], name: str, *, counted: bool,
@@ -242,49 +349,59 @@ def _polygon_rows(rows: list[str], nums: Sequence[int], name: str, *, counted: b
         idx = None
         if counted:
             k0 = a[0, 0]
-            if np.all(a[:, 0] == k0) and 3 <= k0 < a.shape[1]:
+            if np.all(a[:, 0] == k0) and 3 <= k0 < a.shape[1] and float(k0).is_integer():
                 idx = a[:, 1:int(k0) + 1]
         elif a.shape[1] == 3:
             idx = a
-        if idx is not None and np.all(np.abs(idx) < 2**53) and np.all(idx == np.round(idx)):
+        if idx is not None and np.all(np.abs(idx) < _MAX_INDEX) and np.all(idx == np.round(idx)):
             return np.full(m, idx.shape[1], np.int64), (idx.astype(np.int64) - base).ravel()
     # slow path: mixed polygon sizes, or an error to locate
     counts = np.empty(m, np.int64)
     flat: list[int] = []
     for r, (row, line) in enumerate(zip(rows, nums)):
         toks = row.split()
+        plain = row.isascii() and "_" not in row  # then int() reads exactly what _INT_RE does
         if counted:
             try:
-                k = _parse_int(toks[0])
+                k = int(toks[0]) if plain else _int_or_none(toks[0])
             except ValueError:
-                raise _err(name, f"line {line}: face vertex count {toks[0]!r} is not an "
-                                 "integer") from None
+                k = _int_or_none(toks[0])
+            if k is None:
+                raise _err(name, f"line {line}: face vertex count {_q(toks[0])} is not an "
+                                 "integer")
             if k < 3:
                 raise _err(name, f"line {line}: a face needs at least 3 vertices, found {k}")
             if len(toks) < k + 1:
                 raise _err(name, f"line {line}: face announces {k} vertices but lists only "
-                                 f"{len(toks) - 1}: {row.strip()!r}")
+                                 f"{len(toks) - 1}: {_q(row)}")
             idx = toks[1:k + 1]
+            if len(toks) > k + 1:
+                bad = next((t for t in toks[k + 1:] if not _is_float(t)), None)
+                if bad is not None:
+                    raise _err(name, f"line {line}: non-numeric value {_q(bad)} after the "
+                                     f"face's {k} vertex indices")
         else:
             if len(toks) != 3:
                 raise _err(name, f"line {line}: a triangle needs exactly 3 vertex indices, "
-                                 f"found {len(toks)}: {row.strip()!r}")
+                                 f"found {len(toks)}: {_q(row)}")
             idx, k = toks, 3
         try:
-            flat.extend(_parse_int(t) - base for t in idx)
+            ids = [int(t) for t in idx] if plain else None
         except ValueError:
-            bad = next(t for t in idx if not _is_int(t))
-            raise _err(name, f"line {line}: vertex index {bad!r} is not an integer") from None
+            ids = None
+        if ids is None or min(ids) <= -_MAX_INDEX or max(ids) >= _MAX_INDEX:
+            ids = []
+            for t in idx:
+                i = _int_or_none(t)
+                if i is None:
+                    raise _err(name, f"line {line}: vertex index {_q(t)} is not an integer")
+                if abs(i) >= _MAX_INDEX:
+                    raise _err(name, f"line {line}: vertex index {_q(t)} is out of range")
+                ids.append(i)
+        flat.extend(ids)
         counts[r] = k
-    return counts, np.asarray(flat, dtype=np.int64)
-
-
-def _is_int(tok: str) -> bool:
-    try:
-        _parse_int(tok)
-        return True
-    except ValueError:
-        return False
+    flat_a = np.asarray(flat, dtype=np.int64)
+    return counts, flat_a - base if base else flat_a
 
 
 def _repr_rows(v: np.ndarray, prefix: str = "") -> str:
@@ -313,9 +430,9 @@ def _parse_off(data: bytes, name: str) -> RawShape:
     kw = head[0]
     if not _OFF_HEADER.fullmatch(kw):
         if kw.endswith("OFF") and kw[:-3] and set(kw[:-3]) <= set("STCN4n"):
-            raise _err(name, f"unsupported OFF variant {kw!r} (only 3-D OFF is read)")
+            raise _err(name, f"unsupported OFF variant {_q(kw)} (only 3-D OFF is read)")
         raise _err(name, f"bad header: expected 'OFF' on line {nums[0]}, "
-                         f"found {content[0].strip()[:40]!r}")
+                         f"found {_q(content[0])}")
     if len(head) > 1 and head[1].upper() == "BINARY":
         raise _err(name, "binary OFF is not supported; convert it to text OFF, PLY or STL")
     i = 1
@@ -325,13 +442,11 @@ def _parse_off(data: bytes, name: str) -> RawShape:
             raise _err(name, "bad header: file ends after 'OFF', the vertex/face counts are "
                              "missing")
         counts_toks, counts_line, i = content[1].split(), nums[1], 2
-    try:
-        cnt = [int(t) for t in counts_toks]
-    except ValueError:
-        cnt = []
-    if len(cnt) not in (2, 3) or min(cnt) < 0:
+    cnt = [int(t) for t in counts_toks] if all(_COUNT_RE.fullmatch(t) and len(t) <= 18
+                                               for t in counts_toks) else []
+    if len(cnt) not in (2, 3):
         raise _err(name, f"bad header: line {counts_line} should hold 'n_vertices n_faces "
-                         f"[n_edges]' (non-negative integers), found {' '.join(counts_toks)!r}")
+                         f"[n_edges]' (non-negative integers), found {_q(' '.join(counts_toks))}")
     nv, nf = cnt[0], cnt[1]
     if nv == 0:
         raise _err(name, "header announces 0 vertices: the file holds no shape")
@@ -364,6 +479,10 @@ _OBJ_IGNORED = {"vt", "vn", "vp", "g", "o", "s", "usemtl", "mtllib", "l", "p", "
                 "shadow_obj", "trace_obj", "ctech", "stech"}
 
 
+# a face's vertex reference: v, v/vt, v//vn or v/vt/vn (only v is read)
+_OBJ_REF = re.compile(r"([+-]?+\d++)(?:/[+-]?+\d*+){0,2}+", re.ASCII)
+
+
 def _parse_obj(data: bytes, name: str) -> RawShape:
     content, nums = _content_lines(_decode(data))
     if not content:
@@ -387,18 +506,20 @@ def _parse_obj(data: bytes, name: str) -> RawShape:
         elif kw not in _OBJ_IGNORED:
             unknown.setdefault(kw, line)
     if not vrows:
-        hint = f" (first unknown statement {next(iter(unknown))[:20]!r} at line " \
+        hint = f" (first unknown statement {_q(next(iter(unknown))[:20])} at line " \
                f"{next(iter(unknown.values()))})" if unknown else ""
         raise _err(name, f"no vertices: the file has no 'v' lines; is it really OBJ?{hint}")
     if unknown:
-        logger.debug("%s: ignored OBJ statements %s", name, sorted(unknown))
+        logger.debug("%s: ignored %d kinds of OBJ statements, e.g. %s", name, len(unknown),
+                     [_q(k) for k in sorted(unknown)[:5]])
     vertices = _float_rows(vrows, vnums, name, "vertex", 3, exact=False)
     if not frows:
         return RawShape(vertices, None, None, 1, name, name, vnums, None)
-    # fast path: plain 'f a b c' rows with positive indices and equal sizes
+    # fast path: plain 'f a b c' rows with positive indices and equal sizes (loadtxt skips
+    # blank rows: an empty 'f' line leaves it one row short, and goes to the slow path)
     if not any("/" in r or "-" in r for r in frows):
         a = _loadtxt(frows, np.int64)
-        if a is not None and a.shape[1] >= 3 and a.min() > 0:
+        if a is not None and a.shape[0] == len(frows) and a.shape[1] >= 3 and a.min() > 0:
             return RawShape(vertices, np.full(len(a), a.shape[1], np.int64), (a - 1).ravel(),
                             1, name, name, vnums, fnums)
     counts = np.empty(len(frows), np.int64)
@@ -408,12 +529,13 @@ def _parse_obj(data: bytes, name: str) -> RawShape:
         if len(toks) < 3:
             raise _err(name, f"line {line}: a face needs at least 3 vertices, found {len(toks)}")
         for tok in toks:
-            head = tok.partition("/")[0]
-            try:
-                i = int(head)
-            except ValueError:
-                raise _err(name, f"line {line}: vertex reference {tok!r} is not an "
-                                 "integer") from None
+            ref = _OBJ_REF.fullmatch(tok)
+            if ref is None:
+                raise _err(name, f"line {line}: vertex reference {_q(tok)} is not an "
+                                 "integer (or v/vt/vn integers)")
+            i = _int_or_none(ref.group(1))
+            if abs(i) >= _MAX_INDEX:
+                raise _err(name, f"line {line}: vertex index {_q(ref.group(1))} is out of range")
             if i == 0:
                 raise _err(name, f"line {line}: vertex index 0 is invalid (OBJ indices start at 1)")
             if i < 0:
@@ -439,6 +561,8 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
               "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
               "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
               "float64": "f8"}
+_PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int",
+              "u4": "uint", "f4": "float", "f8": "double"}
 _STRUCT = {"i1": "b", "u1": "B", "i2": "h", "u2": "H", "i4": "i", "u4": "I", "f4": "f", "f8": "d"}
 
 
@@ -456,6 +580,17 @@ class _PlyElement:
     props: list[_PlyProp]
 
 
+def _prop(el: _PlyElement, p: _PlyProp) -> str:
+    """``'vertex' property 'x'``, for messages."""
+    return f"{_q(el.name)} property {_q(p.name)}"
+
+
+def _ply_total(elements: list[_PlyElement]) -> str:
+    """``"42 vertex, 80 face"``: the header's record counts, for messages (at most 4 named)."""
+    text = ", ".join(f"{e.count} {e.name[:20]}" for e in elements[:4])
+    return text + (f" and {len(elements) - 4} more elements" if len(elements) > 4 else "")
+
+
 def _ply_header(data: bytes, name: str) -> tuple[str, list[_PlyElement], int]:
     first = data[:4]
     if first != b"ply\n" and data[:5] != b"ply\r\n":
@@ -465,38 +600,50 @@ def _ply_header(data: bytes, name: str) -> tuple[str, list[_PlyElement], int]:
         raise _err(name, "bad header: no 'end_header' line (file truncated in its header?)")
     body = data.find(b"\n", end.end())
     body = len(data) if body < 0 else body + 1
-    lines = data[:end.start()].decode("ascii", errors="replace").splitlines()
+    lines = _split_lines(data[:end.start()].decode("ascii", errors="replace"))
     fmt = None
     elements: list[_PlyElement] = []
     for ln, raw in enumerate(lines[1:], 2):
         toks = raw.split()
         if not toks or toks[0] in ("comment", "obj_info"):
             continue
-        bad = _err(name, f"bad header line {ln}: {raw.strip()!r}")
+
+        def bad(why: str = "") -> MeshFormatError:
+            return _err(name, f"bad header line {ln}: {_q(raw)}{why}")
+
         if toks[0] == "format":
             if len(toks) != 3 or toks[1] not in ("ascii", "binary_little_endian",
                                                   "binary_big_endian"):
-                raise bad
+                raise bad()
             fmt = toks[1]
         elif toks[0] == "element":
-            if len(toks) != 3 or not toks[2].isdigit():
-                raise bad
+            if len(toks) != 3 or not _COUNT_RE.fullmatch(toks[2]) or len(toks[2]) > 18:
+                raise bad(" (expected 'element NAME COUNT')")
+            if any(e.name == toks[1] for e in elements):
+                raise bad(f": element {_q(toks[1])} declared twice")
             elements.append(_PlyElement(toks[1], int(toks[2]), []))
         elif toks[0] == "property":
             if not elements:
-                raise bad
+                raise bad(" (a property before any element)")
+            el = elements[-1]
             if len(toks) == 3 and toks[1] in _PLY_TYPES:
-                elements[-1].props.append(_PlyProp(toks[2], _PLY_TYPES[toks[1]], None))
+                prop = _PlyProp(toks[2], _PLY_TYPES[toks[1]], None)
             elif len(toks) == 5 and toks[1] == "list" and toks[2] in _PLY_TYPES \
                     and toks[3] in _PLY_TYPES and _PLY_TYPES[toks[2]][0] in "iu":
-                elements[-1].props.append(_PlyProp(toks[4], _PLY_TYPES[toks[3]],
-                                                   _PLY_TYPES[toks[2]]))
+                prop = _PlyProp(toks[4], _PLY_TYPES[toks[3]], _PLY_TYPES[toks[2]])
             else:
-                raise bad
+                raise bad()
+            if any(p.name == prop.name for p in el.props):
+                raise bad(f": property {_q(prop.name)} declared twice in element {_q(el.name)}")
+            el.props.append(prop)
         else:
-            raise bad
+            raise bad()
     if fmt is None:
         raise _err(name, "bad header: no 'format' line")
+    empty = next((e for e in elements if e.count and not e.props), None)
+    if empty is not None:
+        raise _err(name, f"bad header: element {_q(empty.name)} has {empty.count} records but "
+                         "no properties")
     return fmt, elements, body
 
 
@@ -511,27 +658,38 @@ def _ply_ascii_generic(rows, nums, el: _PlyElement, name: str) -> _Columns:
     for row, line in zip(rows, nums):
         toks = row.split()
         pos = 0
-        try:
-            for p in el.props:
-                if p.count_dtype is None:
-                    scal[p.name].append(float(toks[pos]))
-                    pos += 1
-                else:
-                    k = _parse_int(toks[pos])
-                    if k < 0:
-                        raise ValueError
-                    lists[p.name][0].append(k)
-                    lists[p.name][1].extend(float(t) for t in toks[pos + 1:pos + 1 + k])
-                    if pos + 1 + k > len(toks):
-                        raise IndexError
-                    pos += 1 + k
-        except (ValueError, IndexError):
-            raise _err(name, f"line {line}: malformed {el.name!r} record {row.strip()!r}") from None
+        for p in el.props:
+            if pos >= len(toks):
+                raise _err(name, f"line {line}: the {_q(el.name)} record ends before property "
+                                 f"{_q(p.name)}: {_q(row)}")
+            tok = toks[pos]
+            if p.count_dtype is None:
+                if not _is_float(tok):
+                    raise _err(name, f"line {line}: non-numeric value {_q(tok)} in "
+                                     f"{_prop(el, p)}")
+                scal[p.name].append(float(tok))
+                pos += 1
+                continue
+            k = _int_or_none(tok)
+            if k is None or k < 0:
+                raise _err(name, f"line {line}: {_prop(el, p)}: list length {_q(tok)} is not a "
+                                 "non-negative integer")
+            items = toks[pos + 1:pos + 1 + k]
+            if len(items) < k:
+                raise _err(name, f"line {line}: {_prop(el, p)}: the list announces {k} values "
+                                 f"but the record has only {len(items)} after it")
+            bad = next((t for t in items if not _is_float(t)), None)
+            if bad is not None:
+                raise _err(name, f"line {line}: non-numeric value {_q(bad)} in {_prop(el, p)}")
+            lists[p.name][0].append(k)
+            lists[p.name][1].extend(float(t) for t in items)
+            pos += 1 + k
         if pos != len(toks):
-            raise _err(name, f"line {line}: {el.name!r} record has {len(toks) - pos} extra "
-                             f"values: {row.strip()!r}")
-    cols: _Columns = {k: np.asarray(v) for k, v in scal.items()}
-    cols.update({k: (np.asarray(c, np.int64), np.asarray(f)) for k, (c, f) in lists.items()})
+            raise _err(name, f"line {line}: {_q(el.name)} record has {len(toks) - pos} extra "
+                             f"values: {_q(row)}")
+    cols: _Columns = {k: np.asarray(v, np.float64) for k, v in scal.items()}
+    cols.update({k: (np.asarray(c, np.int64), np.asarray(f, np.float64))
+                 for k, (c, f) in lists.items()})
     return cols
 
 
@@ -542,49 +700,110 @@ def _ply_ascii(body: bytes, elements: list[_PlyElement], name: str, header_lines
     out: dict[str, _Columns] = {}
     lines_of: dict[str, list[int]] = {}
     pos = 0
-    total = ", ".join(f"{e.count} {e.name}" for e in elements)
+    total = _ply_total(elements)
     for el in elements:
         rows, rnums = content[pos:pos + el.count], nums[pos:pos + el.count]
         if len(rows) < el.count:
             raise _err(name, f"file is truncated: the header announces {total} records but only "
-                             f"{len(rows)} of the {el.count} {el.name!r} lines are present")
+                             f"{len(rows)} of the {el.count} {_q(el.name)} lines are present")
         pos += el.count
         if el.name not in wanted or el.count == 0:
             continue
         lines_of[el.name] = rnums
         nlist = sum(p.count_dtype is not None for p in el.props)
         if nlist == 0:
-            a = _float_rows(rows, rnums, name, f"{el.name!r} record", len(el.props), exact=True)
+            a = _float_rows(rows, rnums, name, f"{_q(el.name)} record", len(el.props),
+                            exact=True, fields=[f"property {_q(p.name)}" for p in el.props])
             out[el.name] = {p.name: a[:, j] for j, p in enumerate(el.props)}
-        elif nlist == 1 and el.props[0].count_dtype is not None and el.name == "face":
+            continue
+        if nlist == 1 and el.props[0].count_dtype is not None and el.name == "face":
             a = _loadtxt(rows)
-            k = None if a is None else a[:, 0]
-            if a is not None and np.all(k == k[0]) and a.shape[1] == int(k[0]) + len(el.props):
-                counts, flat = _polygon_rows(rows, rnums, name, counted=True, base=0)
-                out[el.name] = {el.props[0].name: (counts, flat)}
-            else:
-                out[el.name] = _ply_ascii_generic(rows, rnums, el, name)
-        else:
-            out[el.name] = _ply_ascii_generic(rows, rnums, el, name)
+            if a is not None and a.shape[0] == len(rows):
+                k = a[:, 0]
+                if np.isfinite(k[0]) and np.all(k == k[0]) \
+                        and a.shape[1] == k[0] + len(el.props):
+                    counts, flat = _polygon_rows(rows, rnums, name, counted=True, base=0)
+                    cols = {el.props[0].name: (counts, flat)}
+                    cols.update({p.name: a[:, -len(el.props) + j]
+                                 for j, p in enumerate(el.props) if j})
+                    out[el.name] = cols
+                    continue
+        out[el.name] = _ply_ascii_generic(rows, rnums, el, name)
     if pos < len(content):
         raise _err(name, f"the header announces {total} records but the file has "
                          f"{len(content) - pos} more lines (first at line {nums[pos]})")
     return out, lines_of
 
 
+def _ply_fit(values: np.ndarray, dtype: str) -> np.ndarray:
+    """Mask of the values (read as text) that do not fit the PLY type ``dtype``: NaN,
+    fractions or out-of-range values for an integer type; finite values beyond float32 for
+    ``float``."""
+    v = np.asarray(values)
+    if dtype[0] in "iu":
+        info = np.iinfo(dtype)
+        with np.errstate(invalid="ignore"):
+            ok = (v >= info.min) & (v <= info.max)
+            if v.dtype.kind == "f":
+                ok &= v == np.round(v)
+        return ~ok
+    if dtype == "f4" and v.dtype.kind == "f":
+        with np.errstate(over="ignore"):
+            return np.isfinite(v) & ~np.isfinite(v.astype(np.float32))
+    return np.zeros(v.shape, bool)
+
+
+def _ply_type_text(dtype: str) -> str:
+    if dtype[0] in "iu":
+        info = np.iinfo(dtype)
+        return f"{_PLY_NAMES[dtype]} (integers {info.min}..{info.max})"
+    return f"{_PLY_NAMES[dtype]} (float32, magnitude up to 3.4e38)"
+
+
+def _num_text(x: float) -> str:
+    x = float(x)
+    return str(int(x)) if x.is_integer() and abs(x) < 1e16 else repr(x)
+
+
+def _ply_check_types(cols: _Columns, el: _PlyElement, lines: Sequence[int], name: str) -> None:
+    """Refuse text values that do not fit their declared type (``nan`` or ``300`` in a
+    ``uchar`` property) before anything casts them: a cast would wrap them silently."""
+    for p in el.props:
+        col = cols[p.name]
+        if p.count_dtype is None:
+            checks = [(col, p.dtype, "", lambda i: i)]
+        else:
+            counts, flat = col
+            ends = np.cumsum(counts)
+            checks = [(counts, p.count_dtype, " list length", lambda i: i),
+                      (flat, p.dtype, "",
+                       lambda i, ends=ends: int(np.searchsorted(ends, i, side="right")))]
+        for values, dtype, what, record in checks:
+            bad = _ply_fit(values, dtype)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise _err(name, f"line {lines[record(i)]}: {_prop(el, p)}{what} holds "
+                                 f"{_num_text(values[i])}, which does not fit its type "
+                                 f"{_ply_type_text(dtype)}")
+
+
 def _ply_binary(body: bytes, elements: list[_PlyElement], endian: str, name: str,
                 wanted: set[str]) -> dict[str, _Columns]:
     out: dict[str, _Columns] = {}
     off = 0
-    total = ", ".join(f"{e.count} {e.name}" for e in elements)
+    total = _ply_total(elements)
     trunc = _err(name, f"file is truncated: the header announces {total} records but the "
                        "binary data ends early")
+
+    def negative(p: _PlyProp, k: int) -> MeshFormatError:
+        return _err(name, f"{_prop(el, p)}: negative list length {k}")
+
     for el in elements:
         if el.count == 0:
             continue
         lists = [p for p in el.props if p.count_dtype is not None]
         # fast path: fixed layout (no lists, or every list as long as in the first record)
-        fields, pos, ks = [], off, []
+        fields, pos = [], off
         try:
             for j, p in enumerate(el.props):
                 if p.count_dtype is None:
@@ -592,15 +811,21 @@ def _ply_binary(body: bytes, elements: list[_PlyElement], endian: str, name: str
                     pos += np.dtype(p.dtype).itemsize
                 else:
                     (k,) = struct.unpack_from(endian + _STRUCT[p.count_dtype], body, pos)
+                    if k < 0:
+                        raise negative(p, k)
                     fields.append((f"n{j}", endian + p.count_dtype))
                     fields.append((f"p{j}", endian + p.dtype, (k,)))
                     pos += np.dtype(p.count_dtype).itemsize + k * np.dtype(p.dtype).itemsize
-                    ks.append(k)
         except struct.error:
             raise trunc from None
-        dt = np.dtype(fields)
+        if pos > len(body):
+            raise trunc
         arr = None
-        if off + el.count * dt.itemsize <= len(body):
+        try:
+            dt = np.dtype(fields)
+        except ValueError:  # a record too large for a numpy dtype: read record by record
+            dt = None
+        if dt is not None and off + el.count * dt.itemsize <= len(body):
             arr = np.frombuffer(body, dt, el.count, off)
             if any(np.any(arr[f"n{j}"] != arr[f"n{j}"][0])
                    for j, p in enumerate(el.props) if p.count_dtype is not None):
@@ -635,7 +860,11 @@ def _ply_binary(body: bytes, elements: list[_PlyElement], endian: str, name: str
                         off += item.size
                     else:
                         (k,) = cnt.unpack_from(body, off)
+                        if k < 0:
+                            raise negative(p, k)
                         off += cnt.size
+                        if off + k * item.size > len(body):
+                            raise trunc
                         vals = struct.unpack_from(f"{endian}{k}{_STRUCT[p.dtype]}", body, off)
                         off += k * item.size
                         lst[p.name][0].append(k)
@@ -659,9 +888,10 @@ def _parse_ply(data: bytes, name: str) -> RawShape:
     vert = by_name.get("vertex")
     if vert is None or vert.count == 0:
         raise _err(name, "the PLY file has no vertices (no or empty 'vertex' element)")
-    have = {p.name for p in vert.props if p.count_dtype is None}
-    if not {"x", "y", "z"} <= have:
-        raise _err(name, f"the 'vertex' element lacks x, y, z properties (has {sorted(have)})")
+    have = [p.name for p in vert.props if p.count_dtype is None]
+    if not {"x", "y", "z"} <= set(have):
+        raise _err(name, f"the 'vertex' element lacks x, y, z properties (has "
+                         f"{_q(', '.join(have))})")
     face = by_name.get("face")
     index_prop = None
     if face is not None and face.count:
@@ -675,11 +905,15 @@ def _parse_ply(data: bytes, name: str) -> RawShape:
         header_lines = data[:body].count(b"\n")
         cols, lines_of = _ply_ascii(data[body:], elements, name, header_lines, wanted)
         vlines, flines = lines_of.get("vertex"), lines_of.get("face")
+        for el in (vert, face if index_prop else None):
+            if el is not None:
+                _ply_check_types(cols[el.name], el, lines_of[el.name], name)
     else:
         cols = _ply_binary(data[body:], elements, "<" if fmt == "binary_little_endian" else ">",
                            name, wanted)
     vc = cols["vertex"]
-    # ASCII values are cast to the declared type, so ASCII and binary PLY read alike
+    # ASCII values (checked to fit) are cast to the declared type, so ASCII and binary PLY
+    # read alike
     decl = {p.name: p.dtype for p in vert.props}
     vertices = np.column_stack([np.asarray(vc[c]).astype(decl[c]).astype(np.float64)
                                 for c in "xyz"])
@@ -692,8 +926,12 @@ def _parse_ply(data: bytes, name: str) -> RawShape:
         raise _err(name, f"{where}: a face needs at least 3 vertices, found {int(counts[bad])}")
     flat = np.asarray(flat)
     if flat.dtype.kind == "f":
-        if not (np.isfinite(flat).all() and np.all(flat == np.round(flat))):
-            raise _err(name, "face vertex indices are not integers")
+        whole = np.isfinite(flat) & (flat == np.round(flat)) & (np.abs(flat) < _MAX_INDEX)
+        if not whole.all():
+            i = int(np.argmax(~whole))
+            face_i = int(np.searchsorted(np.cumsum(counts), i, side="right"))
+            where = f"line {flines[face_i]}" if flines else f"face {face_i}"
+            raise _err(name, f"{where}: vertex index {_num_text(flat[i])} is not an integer")
     return RawShape(vertices, counts, flat.astype(np.int64), 0, name, name, vlines, flines)
 
 
@@ -744,25 +982,142 @@ def _parse_stl(data: bytes, name: str) -> RawShape:
 
 
 def _parse_stl_ascii(data: bytes, name: str) -> np.ndarray:
-    toks = np.array(_decode(data).lower().split())
-    n_facet = int(np.count_nonzero(toks == "facet"))
-    n_end = int(np.count_nonzero(toks == "endfacet"))
-    vpos = np.flatnonzero(toks == "vertex")
-    epos = np.flatnonzero(toks == "endsolid")
-    ended = len(epos) > 0 and (n_end == 0 or epos[-1] > np.flatnonzero(toks == "endfacet")[-1])
-    if n_facet != n_end or len(vpos) != 3 * n_facet or not ended:
+    """Corners ``(3m, 3)`` of an ASCII STL file: one or more ``solid [name]`` ...
+    ``endsolid [name]`` blocks of facets, keywords in any case. Checked token by token
+    against the grammar (no fixed-width token array: a megabyte-long token costs nothing)."""
+    low = data.lower()
+    marks = _stl_solid_lines(low)
+    bodies: list[tuple[int, int]] = []
+    prev, start = 0, None
+    for line_start, line_end, is_end in marks:
+        if not is_end:
+            if start is not None:
+                raise _err(name, f"line {_line_at(low, line_start)}: 'solid' inside a solid "
+                                 "(no 'endsolid' before it)")
+            gap = low[prev:line_start]
+            if gap.strip():
+                where = prev + len(gap) - len(gap.lstrip())
+                raise _err(name, f"line {_line_at(low, where)}: unexpected text "
+                                 f"{_q(_token_at(data, where))} "
+                                 + ("after 'endsolid'" if bodies else "before 'solid'"))
+            start = line_end
+        else:
+            if start is None:
+                raise _err(name, f"line {_line_at(low, line_start)}: 'endsolid' without a "
+                                 "'solid' before it")
+            bodies.append((start, line_start))
+            start = None
+        prev = line_end
+    tail = low[prev:]
+    if start is not None or not marks:
+        toks = low.split()
+        n_facet, n_end = toks.count(b"facet"), toks.count(b"endfacet")
         raise _err(name, f"ASCII STL is truncated or malformed: {n_facet} 'facet', {n_end} "
-                         f"'endfacet' and {len(vpos)} 'vertex' statements"
-                         + ("" if ended else ", no final 'endsolid'"))
-    fpos = np.flatnonzero(toks == "facet")
-    if n_facet and np.any(np.bincount(np.searchsorted(fpos, vpos) - 1, minlength=n_facet) != 3):
-        raise _err(name, "ASCII STL facet without exactly 3 vertices")
-    if n_facet and vpos[-1] + 3 >= len(toks):
-        raise _err(name, "ASCII STL is truncated after its last 'vertex'")
-    try:
-        return toks[vpos[:, None] + np.arange(1, 4)].astype(np.float64).reshape(-1, 3)
-    except ValueError as exc:
-        raise _err(name, f"non-numeric vertex coordinate in ASCII STL ({exc})") from None
+                         f"'endfacet' and {toks.count(b'vertex')} 'vertex' statements, no final "
+                         "'endsolid'")
+    if tail.strip():
+        where = prev + len(tail) - len(tail.lstrip())
+        raise _err(name, f"line {_line_at(low, where)}: unexpected text "
+                         f"{_q(_token_at(data, where))} after the last 'endsolid'")
+    corners = []
+    for s, e in bodies:
+        body = low[s:e]
+        if _STL_FACETS.fullmatch(body) is None:
+            _stl_locate_error(data, low, s, e, name)
+        toks = body.split()  # the grammar matched: 21 tokens a facet
+        if toks:
+            cols = [toks[j::len(_STL_GRAMMAR)] for j in _STL_COORDS]
+            corners.append(np.array(cols, dtype=np.float64).T.reshape(-1, 3))
+    if not corners:
+        return np.empty((0, 3))
+    corners = np.concatenate(corners)
+    inf = np.isinf(corners)
+    if inf.any():  # an overflowing literal (1e400): find it and say so
+        _stl_locate_error(data, low, *bodies[0], name, overflow=True)
+        for s, e in bodies[1:]:
+            _stl_locate_error(data, low, s, e, name, overflow=True)
+    return corners
+
+
+_STL_NUM = rb"[+-]?+(?:(?:\d++(?:\.\d*+)?+|\.\d++)(?:e[+-]?+\d++)?+|infinity|inf|nan)"
+_STL_COORDS = (8, 9, 10, 12, 13, 14, 16, 17, 18)  # where the corners' coordinates are
+# the tokens of one facet, and what each must be (a keyword, or a number naming its field)
+_STL_GRAMMAR: tuple[bytes | str, ...] = (
+    b"facet", b"normal", "normal x", "normal y", "normal z", b"outer", b"loop",
+    *(t for c in (1, 2, 3) for t in (b"vertex", f"vertex {c} x", f"vertex {c} y",
+                                     f"vertex {c} z")),
+    b"endloop", b"endfacet")
+_STL_FACET = re.compile(rb"\s*" + rb"\s+".join(
+    re.escape(t) if isinstance(t, bytes) else b"(" + _STL_NUM + b")" for t in _STL_GRAMMAR)
+    + rb"(?=\s|$)")
+_STL_FACETS = re.compile(rb"(?:" + _STL_FACET.pattern + rb")*+\s*")
+_STL_NUM_RE = re.compile(_STL_NUM)
+
+
+def _stl_solid_lines(low: bytes) -> list[tuple[int, int, bool]]:
+    """``(start, end, is_endsolid)`` of each line of ``low`` whose first word is ``solid`` or
+    ``endsolid`` (``end`` before the line's newline; a name may follow the keyword)."""
+    out = []
+    pos = 0
+    while (i := low.find(b"solid", pos)) >= 0:
+        pos = i + 5
+        is_end = low[max(i - 3, 0):i] == b"end"
+        first = i - 3 if is_end else i
+        line_start = low.rfind(b"\n", 0, first) + 1
+        if low[line_start:first].strip() or not (pos == len(low) or low[pos:pos + 1].isspace()):
+            continue  # not the line's first word, or a longer word ("solidx")
+        line_end = low.find(b"\n", pos)
+        pos = line_end = len(low) if line_end < 0 else line_end
+        out.append((line_start, line_end, is_end))
+    return out
+
+
+def _line_at(data: bytes, pos: int) -> int:
+    return data.count(b"\n", 0, pos) + 1
+
+
+def _token_at(data: bytes, pos: int) -> bytes:
+    m = re.compile(rb"\S+").match(data, pos)
+    return m.group() if m else b""
+
+
+def _stl_locate_error(data: bytes, low: bytes, s: int, e: int, name: str,
+                      overflow: bool = False) -> None:
+    """Raise the error of the first facet of ``low[s:e]`` that breaks the grammar (or, with
+    ``overflow``, whose coordinate overflows float64), naming its line and field."""
+    pos = s
+    while True:
+        m = _STL_FACET.match(low, pos, e)
+        if m is None:
+            break
+        if overflow:
+            for j, g in enumerate(m.groups()):
+                if np.isinf(float(g)) and g.lstrip(b"+-") not in (b"inf", b"infinity"):
+                    field = [t for t in _STL_GRAMMAR if isinstance(t, str)][j]
+                    raise _err(name, f"line {_line_at(low, m.start(j + 1))}: {field}: "
+                                     f"{_q(g)} overflows float64 (largest finite value about "
+                                     "1.8e308)")
+        pos = m.end()
+    if overflow:
+        return
+    toks = list(re.compile(rb"\S+").finditer(low, pos, e))[:len(_STL_GRAMMAR) + 1]
+    for want, tok in zip(_STL_GRAMMAR, toks):
+        t = tok.group()
+        if isinstance(want, bytes) and t != want:
+            raise _err(name, f"line {_line_at(low, tok.start())}: expected {want.decode()!r}, "
+                             f"found {_q(data[tok.start():tok.end()])}")
+        if isinstance(want, str) and not _STL_NUM_RE.fullmatch(t):
+            raise _err(name, f"line {_line_at(low, tok.start())}: non-numeric vertex coordinate "
+                             f"{_q(data[tok.start():tok.end()])} ({want})"
+                       if want.startswith("vertex") else
+                       f"line {_line_at(low, tok.start())}: non-numeric {want} "
+                       f"{_q(data[tok.start():tok.end()])}")
+    if not toks or len(toks) > len(_STL_GRAMMAR):  # not reached: the grammar would match
+        raise _err(name, f"line {_line_at(low, pos)}: malformed facet")
+    missing = _STL_GRAMMAR[len(toks)]
+    missing = missing.decode() if isinstance(missing, bytes) else f"a number ({missing})"
+    raise _err(name, f"line {_line_at(low, toks[0].start())}: facet ends early: expected "
+                     f"{missing!s} before 'endsolid'")
 
 
 def _format_stl(shape: PointCloud, name: str) -> bytes:
@@ -815,6 +1170,7 @@ def _read_tosca(path: Path, gz: bool, ext: str) -> RawShape:
 
 # --------------------------------------------------------------------------- XYZ
 _BLANK_BETWEEN_VALUES = re.compile(r"[^\s,]\s+[^\s,]")
+_EMPTY_FIELD = re.compile(r"^,|,\s*,")  # a missing value would shift the columns
 
 
 def _parse_xyz(data: bytes, name: str) -> RawShape:
@@ -827,8 +1183,12 @@ def _parse_xyz(data: bytes, name: str) -> RawShape:
         both = next((k for k in commas if _BLANK_BETWEEN_VALUES.search(rows[k].strip())), None)
         if both is not None:
             raise _err(name, f"line {nums[both]}: both commas and blanks between values "
-                             f"({rows[both].strip()!r}): decimal commas are not supported; separate "
+                             f"({_q(rows[both])}): decimal commas are not supported; separate "
                              "values by blanks or by commas, with decimal points")
+        empty = next((k for k in commas if _EMPTY_FIELD.search(rows[k].strip())), None)
+        if empty is not None:
+            raise _err(name, f"line {nums[empty]}: empty value between commas "
+                             f"({_q(rows[empty])})")
         rows = [row.replace(",", " ") for row in rows]
     return RawShape(_float_rows(rows, nums, name, "point", 3, exact=False), None, None, 0, name, name,
                     nums, None)
@@ -897,12 +1257,118 @@ def _mat_numbers(value, name: str, what: str) -> np.ndarray:
     raise _err(name, f"{what} holds {kind}, not real numbers")
 
 
+# Version 5 MAT-file element types that scipy's reader has a dtype for: a numeric or
+# character data element of any other type (0, 8, 10, 11, 14, 15, 19...) makes scipy 1.17
+# index past its table of dtypes and crash the interpreter (a segmentation fault; scipy
+# pull requests 25349 and 25829).
+_MI_DATA = frozenset({1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 16, 17, 18})
+_MI_MATRIX, _MI_COMPRESSED = 14, 15
+_MX_NUMERIC = frozenset(range(6, 16))   # mxDOUBLE_CLASS .. mxUINT64_CLASS
+_MX_CELL, _MX_STRUCT, _MX_OBJECT, _MX_CHAR, _MX_SPARSE = 1, 2, 3, 4, 5
+_MAT_MAX_DEPTH = 32
+
+
+class _MatMalformed(Exception):
+    pass
+
+
+def _mat_check(data: bytes, name: str) -> None:
+    """Walk the element tags of a version 5 MAT-file (not its data) and refuse, before
+    scipy reads it, what would crash scipy: a data element of a type it has no dtype for,
+    nesting deeper than 32 levels; and a compressed variable over the decompression limit.
+    Other files (version 4, HDF5) are left to scipy."""
+    if len(data) < 128 or data[126:128] not in (b"IM", b"MI"):
+        return
+    e = "<" if data[126:128] == b"IM" else ">"
+    if struct.unpack_from(e + "H", data, 124)[0] != 0x0100:  # not version 5 (7.3: HDF5)
+        return
+    try:
+        _mat_walk(data, 128, len(data), e, name)
+    except _MatMalformed as exc:
+        raise _err(name, f"not a readable MATLAB MAT-file ({exc})") from None
+
+
+def _mat_tag(buf: bytes, pos: int, end: int, e: str) -> tuple[int, int, int, int, bool]:
+    """``(type, byte count, data start, next element, small)`` of the element at ``pos``."""
+    if pos + 8 > end:
+        raise _MatMalformed(f"element at byte {pos} is cut short")
+    (w,) = struct.unpack_from(e + "I", buf, pos)
+    if w >> 16:  # small data element: type and count in 4 bytes, data in the next 4
+        if w >> 16 > 4:
+            raise _MatMalformed(f"element at byte {pos} has a bad small-element size")
+        return w & 0xFFFF, w >> 16, pos + 4, pos + 8, True
+    (n,) = struct.unpack_from(e + "I", buf, pos + 4)
+    if pos + 8 + n > end:
+        raise _MatMalformed(f"element at byte {pos} ({n} bytes) runs past its container")
+    return w, n, pos + 8, pos + 8 + n, False
+
+
+def _mat_walk(buf: bytes, pos: int, end: int, e: str, name: str, depth: int = 0) -> None:
+    """Check the variables in ``buf[pos:end]`` (each an array, or a compressed one)."""
+    while pos + 8 <= end:
+        mdtype, n, start, nxt, small = _mat_tag(buf, pos, end, e)
+        if mdtype == _MI_COMPRESSED and not small and depth == 0:
+            limit, default = _decompression_limit(n)
+            try:
+                inner = zlib.decompressobj().decompress(buf[start:start + n], limit + 1)
+            except zlib.error as exc:
+                raise _MatMalformed(f"bad compressed variable at byte {pos}: "
+                                    f"{_cut(str(exc))}") from None
+            if len(inner) > limit:
+                raise _over_limit(name, f"a compressed variable (byte {pos})", limit, default, n)
+            _mat_walk(inner, 0, len(inner), e, name, depth + 1)
+        elif mdtype != _MI_MATRIX or small:
+            raise _MatMalformed(f"element at byte {pos} should be a variable (an array), but "
+                                f"has type {mdtype}")
+        elif n:
+            _mat_matrix(buf, start, start + n, e, 0)
+        pos = nxt  # scipy seeks to the next variable, unpadded
+
+
+def _mat_matrix(buf: bytes, pos: int, end: int, e: str, depth: int) -> None:
+    """Check one array: its elements tile ``buf[pos:end]``, every data element has a type
+    scipy has a dtype for, and the array holds exactly the data elements scipy reads in turn
+    (with fewer, scipy would read the next array's tag as data)."""
+    if depth > _MAT_MAX_DEPTH:
+        raise _MatMalformed(f"arrays nested more than {_MAT_MAX_DEPTH} levels deep")
+    if pos + 16 > end:
+        raise _MatMalformed(f"array at byte {pos} is cut short")
+    (flags,) = struct.unpack_from(e + "I", buf, pos + 8)  # scipy reads these 16 bytes as is
+    mclass, is_complex = flags & 0xFF, flags >> 11 & 1
+    subs = []
+    p = pos + 16
+    while p < end:
+        mdtype, n, start, nxt, small = _mat_tag(buf, p, end, e)
+        subs.append((p, mdtype, n, start, small))
+        p = nxt if small else start + -(-n // 8) * 8
+    head = {_MX_OBJECT: 5, _MX_STRUCT: 4}.get(mclass, 2)  # dims, name [, class, name length, names]
+    expected = ({_MX_CHAR: 1, _MX_SPARSE: 3 + is_complex}.get(mclass, 1 + is_complex)
+                if mclass in _MX_NUMERIC or mclass in (_MX_CHAR, _MX_SPARSE) else None)
+    if mclass not in _MX_NUMERIC and mclass not in (_MX_CHAR, _MX_SPARSE, _MX_CELL, _MX_STRUCT,
+                                                     _MX_OBJECT):
+        raise _MatMalformed(f"array at byte {pos} is of MATLAB class {mclass}, which gromov "
+                            "does not read (numbers, characters, cells and structs only)")
+    if len(subs) < head or (expected is not None and len(subs) != head + expected):
+        raise _MatMalformed(f"array at byte {pos} holds {len(subs)} elements, which does not "
+                            f"fit its class {mclass}")
+    for i, (p, mdtype, n, start, small) in enumerate(subs):
+        if expected is not None or i < head:
+            if mdtype not in _MI_DATA:
+                raise _MatMalformed(f"data element at byte {p} has unknown type {mdtype}")
+        elif mdtype != _MI_MATRIX or small:
+            raise _MatMalformed(f"element at byte {p} should be a cell or field (an array), "
+                                f"but has type {mdtype}")
+        elif n:
+            _mat_matrix(buf, start, start + n, e, depth + 1)
+
+
 def _parse_mat(data: bytes, name: str) -> RawShape:
     from scipy.io import loadmat
     from scipy.io.matlab import MatReadError
 
     if data[:8] == _HDF5_SIGNATURE or data[512:520] == _HDF5_SIGNATURE:
         raise _mat_v73(name)
+    _mat_check(data, name)
     try:
         # squeeze_me=False keeps shapes ((n, 1) columns, a 1 x 3 TRIV); structs come as
         # object arrays of mat_struct
@@ -911,8 +1377,10 @@ def _parse_mat(data: bytes, name: str) -> RawShape:
         raise _mat_v73(name) from None
     # what scipy raises on damaged or foreign files (UnboundLocalError: a scipy bug on some
     # truncated files; MemoryError: a corrupted array size)
-    except (MatReadError, OSError, UnboundLocalError, MemoryError, *_PARSE_ERRORS) as exc:
-        raise _err(name, f"not a readable MATLAB MAT-file ({type(exc).__name__}: {exc})") from None
+    except (MatReadError, OSError, UnboundLocalError, MemoryError, ArithmeticError,
+            *_PARSE_ERRORS) as exc:
+        raise _err(name, f"not a readable MATLAB MAT-file "
+                         f"({_library_error(exc, (MatReadError,))})") from None
     variables = {k: v for k, v in content.items() if not k.startswith("__")}
     found: list[tuple[str, dict]] = []    # (label, fields) with X, Y and Z
     partial: list[tuple[str, dict]] = []  # with some of X, Y, Z, TRIV
@@ -1063,7 +1531,8 @@ def _install_meshio_forwarder(meshio) -> None:
                 if name is None:
                     original(string, highlight=highlight)
                 else:
-                    warnings.warn(f"{name}: meshio: {string}", GromovWarning, stacklevel=2)
+                    warnings.warn(f"{name}: meshio: {_cut(str(string))}", GromovWarning,
+                                  stacklevel=2)
 
             meshio._common._gromov_original_warn = original
             meshio._common._gromov_forward = forward
@@ -1088,13 +1557,13 @@ def _read_meshio(path: Path, gz: bool, ext: str) -> RawShape:
     errors = _meshio_read_errors(meshio)
 
     def read(file: str):
-        try:
-            with _meshio_warnings(meshio, name):
+        try:  # numpy's overflow/invalid warnings on damaged data: the result is checked
+            with _meshio_warnings(meshio, name), np.errstate(all="ignore"):
                 return reader(file)
         except errors as exc:
-            msg = str(exc).replace(file, name)
-            raise _err(name, f"cannot read as {fmt.label} with meshio ({type(exc).__name__}"
-                             f"{': ' + msg if msg else ''})") from None
+            own = (meshio.ReadError, *errors[1:2])
+            raise _err(name, f"cannot read as {fmt.label} with meshio "
+                             f"({_library_error(exc, own, file, name)})") from None
 
     if gz:  # meshio's readers want a file name: decompress into a temporary file
         data = _read_bytes(path, True)
@@ -1164,6 +1633,74 @@ def _write_meshio(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
 
 
 # --------------------------------------------------------------------------- bytes <-> files
+#: Default limit on decompression: a ``.gz`` file may inflate to ``GZIP_RATIO`` times its
+#: own size, and always to :data:`GZIP_FLOOR`. Meshes and point clouds compress 3 to 12
+#: times (the 106 TOSCA and TOPKIDS ``.off.gz`` files: 2.8 to 3.6; gromov's icosphere,
+#: torus and a 300 x 300 integer grid saved as OFF, OBJ, PLY, STL and XYZ: 2.9 to 11.7), a
+#: gzip bomb about 1000 times, and parsing costs up to 0.2 s and 13 MB of memory per MB of
+#: text (blank lines: ``gzip.compress(b"0 0 0\\n" + b"\\n" * 64_000_000)`` is a 62 KB
+#: ``.xyz.gz`` that took 12.8 s and 0.84 GB to read without a limit). Past the limit the
+#: read stops, having decompressed no more than the limit, with a
+#: :class:`~gromov.errors.MeshFormatError`; ``load(..., max_decompressed=)`` and the CLI's
+#: ``--max-decompressed`` set another limit.
+GZIP_RATIO = 100
+#: Files that decompress to at most this many bytes (16 MiB) are read whatever their ratio:
+#: small files of repeated lines compress more than 100 times (100,000 points at the origin
+#: saved as ``.xyz.gz``: 500 times), and parsing 16 MiB costs at most a few seconds.
+GZIP_FLOOR = 16 * 2**20
+_MAX_DECOMPRESSED: contextvars.ContextVar[int | None] = contextvars.ContextVar(
+    "gromov_max_decompressed", default=None)
+_GZIP_CHUNK = 16 * 2**20
+_NON_BLANK = re.compile(rb"\S")
+
+
+def _size_text(n: int) -> str:
+    """``n`` bytes in binary units, as ``--max-decompressed`` reads them (``16 MiB``)."""
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n} bytes"
+
+
+def _decompression_limit(compressed: int) -> tuple[int, bool]:
+    """``(limit in bytes, whether it is the default)`` for ``compressed`` bytes of data."""
+    limit = _MAX_DECOMPRESSED.get()
+    if limit is None:
+        return max(GZIP_FLOOR, GZIP_RATIO * compressed), True
+    return limit, False
+
+
+def _over_limit(name: str, what: str, limit: int, default: bool, compressed: int
+                ) -> MeshFormatError:
+    if default:
+        return _err(name, f"{what} decompresses to more than {_size_text(limit)}, the limit for "
+                          f"{_size_text(compressed)} of compressed data ({GZIP_RATIO} times its "
+                          f"size, at least {_size_text(GZIP_FLOOR)}: a gzip bomb?); if the file "
+                          "is genuine, raise the limit with --max-decompressed SIZE "
+                          "(max_decompressed= in gromov.load)")
+    return _err(name, f"{what} decompresses to more than {_size_text(limit)}, the limit set by "
+                      "--max-decompressed (max_decompressed= in gromov.load)")
+
+
+def _gunzip(data: bytes, name: str) -> bytes:
+    """Decompress gzip ``data`` (all members), streaming, stopping past the limit."""
+    limit, default = _decompression_limit(len(data))
+    chunks, total = [], 0
+    try:
+        with gzip.GzipFile(fileobj=BytesIO(data)) as f:
+            while total <= limit:
+                chunk = f.read(min(_GZIP_CHUNK, limit + 1 - total))
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                total += len(chunk)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise _err(name, f"bad gzip data ({_cut(str(exc))})") from None
+    if total > limit:
+        raise _over_limit(name, "the file", limit, default, len(data))
+    return b"".join(chunks)
+
+
 def _read_bytes(path: Path, gz: bool, *, allow_empty: bool = False) -> bytes:
     if path.is_dir():
         raise _err(str(path), "is a directory, not a mesh file")
@@ -1177,11 +1714,8 @@ def _read_bytes(path: Path, gz: bool, *, allow_empty: bool = False) -> bytes:
         if data[:2] != b"\x1f\x8b":
             raise _err(str(path), "bad gzip data: the name ends in .gz but the file is not "
                                   "gzip-compressed")
-        try:
-            data = gzip.decompress(data)
-        except (OSError, EOFError, zlib.error) as exc:
-            raise _err(str(path), f"bad gzip data ({exc})") from None
-    if not allow_empty and not data.strip():
+        data = _gunzip(data, str(path))
+    if not allow_empty and _NON_BLANK.search(data) is None:
         raise _err(str(path), "file is empty" + (" after decompression" if gz else ""))
     return data
 
@@ -1281,6 +1815,14 @@ def _resolve(path: Path, file_type: str | None) -> tuple[str, bool]:
 
 
 # --------------------------------------------------------------------------- validation
+#: Largest coordinate magnitude read. Beyond it the geometry overflows float64: a face's
+#: cross product is of the order of the coordinates squared and its squared norm of their
+#: fourth power (1e75 ** 4 = 1e300). An icosphere scaled by 1e100 made ``gromov info`` fail
+#: (a ``ZeroDivisionError`` after overflow warnings) and ``gromov distances`` find NaNs;
+#: scaled by 1e75 both work.
+MAX_COORDINATE = 1e75
+
+
 def _finish(raw: RawShape, name: str, repair: bool) -> Mesh | PointCloud:
     v = np.asarray(raw.vertices, np.float64)
     if v.shape[0] == 0:
@@ -1291,6 +1833,14 @@ def _finish(raw: RawShape, name: str, repair: bool) -> Mesh | PointCloud:
         line = f" (line {raw.vertex_lines[i]})" if raw.vertex_lines is not None else ""
         raise _err(raw.vertex_file, f"{int(bad.sum())} vertices have NaN or infinite "
                                     f"coordinates, first vertex {i}{line}: {v[i].tolist()}")
+    big = np.abs(v).max(axis=1) > MAX_COORDINATE
+    if big.any():
+        i = int(np.flatnonzero(big)[0])
+        line = f" (line {raw.vertex_lines[i]})" if raw.vertex_lines is not None else ""
+        raise _err(raw.vertex_file, f"{int(big.sum())} vertices have coordinates beyond "
+                                    f"+-{MAX_COORDINATE:g}, first vertex {i}{line}: "
+                                    f"{v[i].tolist()}; areas and their squares would overflow "
+                                    "float64: scale the shape down")
     if raw.counts is None or len(raw.counts) == 0:
         logger.debug("%s: %d points, no faces: point cloud", name, len(v))
         return PointCloud(v)
@@ -1343,8 +1893,8 @@ def _fan(counts: np.ndarray, flat: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- public API
-def load(path: str | os.PathLike, *, repair: bool = True,
-         file_type: str | None = None) -> Mesh | PointCloud:
+def load(path: str | os.PathLike, *, repair: bool = True, file_type: str | None = None,
+         max_decompressed: int | None = None) -> Mesh | PointCloud:
     """Read a triangle mesh or point cloud from a file.
 
     Parameters
@@ -1363,6 +1913,11 @@ def load(path: str | os.PathLike, *, repair: bool = True,
     file_type : str, optional
         Format to use instead of the one implied by the extension, e.g. ``"off"`` or
         ``"off.gz"``. A name ending in ``.gz`` is always decompressed.
+    max_decompressed : int, optional
+        Largest size in bytes that a ``.gz`` file may decompress to. Default:
+        :data:`GZIP_RATIO` (100) times the compressed size, and at least
+        :data:`GZIP_FLOOR` (16 MiB): real meshes compress 3 to 12 times, gzip bombs about
+        1000 times. Decompression streams and stops at the limit.
 
     Returns
     -------
@@ -1382,12 +1937,16 @@ def load(path: str | os.PathLike, *, repair: bool = True,
         a ``MeshFormatError`` and an ``ImportError``).
     MeshFormatError
         Anything else wrong with the file: a directory, unknown extension, empty file,
-        bad header, truncated data, non-numeric values, NaN/inf coordinates, negative or
-        out-of-range face indices, bad gzip data, a MATLAB v7.3 file, a volume mesh, or no
-        triangle left after repair. The message starts with the file name and says where
-        the problem is.
+        bad header, truncated data, non-numeric values, NaN/inf coordinates or ones that
+        overflow float64 or exceed :data:`MAX_COORDINATE` (1e75), PLY values that do not fit their declared type, negative or
+        out-of-range face indices, empty faces, bad gzip data or more than
+        ``max_decompressed`` bytes of it, a MATLAB v7.3 file, a volume mesh, or no triangle
+        left after repair. The message starts with the file name, says where the problem is
+        and quotes at most 60 characters of the file.
     TypeError
-        ``path`` is not a str or path-like.
+        ``path`` is not a str or path-like, or ``max_decompressed`` not an int.
+    ValueError
+        ``max_decompressed`` is less than 1.
 
     Examples
     --------
@@ -1395,6 +1954,14 @@ def load(path: str | os.PathLike, *, repair: bool = True,
     >>> cat.n_vertices, cat.input_ids[:3]                     # doctest: +SKIP
     (27894, array([0, 1, 2]))
     """
+    if max_decompressed is not None:
+        if isinstance(max_decompressed, bool) or not isinstance(max_decompressed,
+                                                                (int, np.integer)):
+            raise TypeError(f"max_decompressed must be an int (bytes) or None, got "
+                            f"{type(max_decompressed).__name__}")
+        if max_decompressed < 1:
+            raise ValueError(f"max_decompressed must be at least 1 byte, got {max_decompressed}")
+        max_decompressed = int(max_decompressed)
     p = _as_path(path)
     key, gz = _resolve(p, file_type)
     if p.is_dir():
@@ -1402,15 +1969,21 @@ def load(path: str | os.PathLike, *, repair: bool = True,
     if not p.exists():
         raise MeshFileNotFoundError(f"{p}: no such file")
     name = str(p)
+    token = _MAX_DECOMPRESSED.set(max_decompressed)
     try:
         raw = FORMATS[key].read(p, gz)
         return _finish(raw, name, repair)
     except MeshFormatError:
         raise
     except MeshError as exc:
-        raise _err(name, str(exc)) from None
+        raise _err(name, _cut(str(exc))) from None
     except _PARSE_ERRORS as exc:
-        raise _err(name, f"cannot parse as {key.upper()}: {type(exc).__name__}: {exc}") from None
+        # a parser let a malformed detail through to numpy or struct: say what is wrong
+        # with the file, not with the parser
+        logger.debug("%s: %s: %s", name, type(exc).__name__, _cut(str(exc)))
+        raise _err(name, f"cannot parse as {key.upper()}: malformed content") from None
+    finally:
+        _MAX_DECOMPRESSED.reset(token)
 
 
 def save(shape: Mesh | PointCloud, path: str | os.PathLike, *,
