@@ -192,13 +192,14 @@ def test_fill_holes_closes_small_loops_and_keeps_the_vertices():
     directed = np.r_[f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]
     assert k == 5 and len(np.unique(directed, axis=0)) == len(directed)
     # two holes touching at one vertex (faces 0 and 81 of icosphere(2) share only vertex 43):
-    # the boundary walk gives one loop through 43 twice, which is not filled
+    # two loops, each through 43 once, and both are filled
     ico = icosphere(2)
     keep = np.ones(ico.n_faces, bool)
     keep[[0, 81]] = False
     bowtie = Mesh(ico.vertices, ico.faces[keep])
-    assert any(len(np.unique(loop)) < len(loop) for loop in bowtie.boundary_loops)
-    assert fill_holes(bowtie, 100.0) == (bowtie, 0)
+    assert len(bowtie.boundary_loops) == 2 and all(len(np.unique(l)) == len(l) for l in bowtie.boundary_loops)
+    closed, k = fill_holes(bowtie, 100.0)
+    assert k == 2 and closed.euler_characteristic == 2 and len(closed.boundary_edges) == 0
 
 
 def test_holes_are_small_or_not_relative_to_their_own_component():

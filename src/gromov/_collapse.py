@@ -4,11 +4,17 @@ The quadric simplifier proposes an order of half-edge collapses ``(keep, remove)
 it, we apply a collapse only when it is a legal edge contraction of the current mesh:
 
 - ``keep`` and ``remove`` share an edge with one or two incident faces (manifold edge);
-- the *link condition* holds: the common neighbours of the two vertices are exactly the
-  opposite vertices of the faces on that edge (Dey, Edelsbrunner, Guha & Nekhayev,
-  "Topology preserving edge contraction", Publ. Inst. Math. 1999), so the contraction is a
-  homeomorphism and the Euler characteristic is kept;
-- an interior edge never joins two boundary vertices (that would pinch the boundary);
+- both are manifold vertices: the faces around each form one fan, closed (interior) or open
+  (boundary) -- a vertex where two holes touch (a bow-tie) is never moved;
+- the *link condition* holds (Dey, Edelsbrunner, Guha & Nekhayev, "Topology preserving edge
+  contraction", Publ. Inst. Math. 1999), with the boundary coned off to a dummy vertex: the
+  common neighbours of the two vertices are exactly the opposite vertices of the faces on
+  that edge; an interior edge never joins two boundary vertices (that would pinch the
+  boundary); no common neighbour ``x`` has both ``x keep`` and ``x remove`` on the boundary
+  (the collapse would delete a triangle hanging by its edges and leave ``x`` in no face); and
+  no two faces ``keep c d``, ``remove c d`` close a tetrahedron over the edge (it would become
+  two copies of one triangle). So the contraction is a homeomorphism and the Euler
+  characteristic, components and boundary loops are kept;
 - since the kept vertex stays at its own input position, no face around ``remove`` flips,
   becomes degenerate, or (optionally) becomes a sliver when ``remove`` moves onto ``keep``.
 
@@ -51,20 +57,113 @@ def _sum_sq_edges(p, q, r):
 
 
 @njit(cache=True)
-def _n_neighbours(F, vf, vcount, v, stamp, tick):
-    cnt = 0
-    for k in range(vcount[v]):
-        f = vf[v, k]
+def _link(F, vf, vcount, v, deg, nb, stamp, tick):
+    """The link of vertex ``v``: ``deg[w]`` (added to, for each neighbour ``w``) is the number
+    of faces of ``v`` that contain ``w`` (1: ``vw`` is a boundary edge); ``nb[:k]`` lists the
+    ``k`` neighbours. Returns ``(k, manifold)``: manifold when the link is one cycle (interior
+    vertex) or one path (boundary vertex) -- not two fans touching at ``v`` (a bow-tie), nor a
+    non-manifold edge at ``v``."""
+    k = 0
+    m = vcount[v]
+    for i in range(m):
+        f = vf[v, i]
         for j in range(3):
             w = F[f, j]
-            if w != v and stamp[w] != tick:
-                stamp[w] = tick
-                cnt += 1
-    return cnt
+            if w != v:
+                if deg[w] == 0:
+                    nb[k] = w
+                    k += 1
+                deg[w] += 1
+    if k == 0:
+        return 0, False
+    for i in range(k):
+        if deg[nb[i]] > 2:
+            return k, False
+    if k > m + 1:   # more than one path: several fans
+        return k, False
+    # one path or one cycle: every neighbour is reached from the first along link edges
+    stamp[nb[0]] = tick
+    reached = 1
+    grown = True
+    while grown:
+        grown = False
+        for i in range(m):
+            f = vf[v, i]
+            x, y = -1, -1
+            for j in range(3):
+                w = F[f, j]
+                if w != v:
+                    if x < 0:
+                        x = w
+                    else:
+                        y = w
+            if (stamp[x] == tick) != (stamp[y] == tick):
+                stamp[x] = tick
+                stamp[y] = tick
+                reached += 1
+                grown = True
+    return k, reached == k
 
 
 @njit(cache=True)
-def _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos, min_quality):
+def _has_face(F, vf, vcount, v, x, y):
+    for i in range(vcount[v]):
+        f = vf[v, i]
+        hx, hy = False, False
+        for j in range(3):
+            hx = hx or F[f, j] == x
+            hy = hy or F[f, j] == y
+        if hx and hy:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _link_condition(a, b, F, vf, vcount, stamp, tick, shared, ns, dega, degb, nba, nbb):
+    """Dey et al.'s link condition for edge ``(a, b)`` (``ns`` faces on it) of a surface with
+    boundary, the boundary coned off to a dummy vertex: both ends have manifold links;
+    ``Lk(a) & Lk(b) == Lk(ab)`` on vertices (the common neighbours are the ``ns`` opposite
+    vertices, and the dummy vertex is common -- both ends on the boundary -- only when ``ab`` is
+    a boundary edge); and on edges (no common neighbour ``x`` with ``ax`` and ``bx`` both
+    boundary edges, and no faces ``acd`` and ``bcd`` over the two opposite vertices)."""
+    ka, man_a = _link(F, vf, vcount, a, dega, nba, stamp, tick)
+    kb, man_b = _link(F, vf, vcount, b, degb, nbb, stamp, tick + 1)
+    ok = man_a and man_b
+    if ok and ns == 2 and ka != vcount[a] and kb != vcount[b]:
+        ok = False   # an interior edge joining two boundary vertices would pinch the boundary
+    if ok:
+        common = 0
+        for i in range(ka):
+            x = nba[i]
+            if x != b and degb[x] > 0:
+                common += 1
+                if dega[x] == 1 and degb[x] == 1:
+                    ok = False
+        if common != ns:
+            ok = False
+    for i in range(ka):
+        dega[nba[i]] = 0
+    for i in range(kb):
+        degb[nbb[i]] = 0
+    if ok and ns == 2:
+        c, d = -1, -1
+        for s in range(2):
+            f = shared[s]
+            for j in range(3):
+                w = F[f, j]
+                if w != a and w != b:
+                    if s == 0:
+                        c = w
+                    else:
+                        d = w
+        if _has_face(F, vf, vcount, a, c, d) and _has_face(F, vf, vcount, b, c, d):
+            ok = False
+    return ok
+
+
+@njit(cache=True)
+def _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos, min_quality,
+                  dega, degb, nba, nbb):
     """Contract edge (a, b) into a if that is legal (see module docstring); True if done."""
     if vcount[a] + vcount[b] > width:
         return False
@@ -77,29 +176,7 @@ def _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width
             ns += 1
     if ns == 0 or ns > 2:
         return False
-    # boundary vertices have one more neighbour than faces
-    tick += 1
-    a_boundary = _n_neighbours(F, vf, vcount, a, stamp, tick) != vcount[a]
-    tick += 1
-    b_boundary = _n_neighbours(F, vf, vcount, b, stamp, tick) != vcount[b]
-    if ns == 2 and a_boundary and b_boundary:
-        return False
-    # link condition: |N(a) & N(b)| == number of faces on the edge
-    tick += 1
-    for k in range(vcount[a]):
-        f = vf[a, k]
-        for j in range(3):
-            stamp[F[f, j]] = tick
-    tick += 1
-    common = 0
-    for k in range(vcount[b]):
-        f = vf[b, k]
-        for j in range(3):
-            w = F[f, j]
-            if w != a and w != b and stamp[w] == tick - 1:
-                stamp[w] = tick
-                common += 1
-    if common != ns:
+    if not _link_condition(a, b, F, vf, vcount, stamp, tick, shared, ns, dega, degb, nba, nbb):
         return False
     # no flipped or degenerate face when b moves onto a
     ok = True
@@ -168,6 +245,10 @@ def _replay(V, F, collapses, cap, min_cos, min_quality):
     stamp = np.zeros(n, np.int64)
     tick = 0
     shared = np.empty(width, np.int64)
+    dega = np.zeros(n, np.int64)
+    degb = np.zeros(n, np.int64)
+    nba = np.empty(2 * width, np.int64)
+    nbb = np.empty(2 * width, np.int64)
     alias = np.arange(n)
     for c in range(collapses.shape[0]):
         a, b = collapses[c, 0], collapses[c, 1]
@@ -178,7 +259,8 @@ def _replay(V, F, collapses, cap, min_cos, min_quality):
         if a == b:
             continue
         tick += 4
-        if _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos, min_quality):
+        if _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos, min_quality,
+                         dega, degb, nba, nbb):
             alive[b] = False
             alias[b] = a
             applied[c] = True
@@ -186,7 +268,7 @@ def _replay(V, F, collapses, cap, min_cos, min_quality):
             # the simplifier would have put the merged vertex between the two: try keeping b
             tick += 4
             if _try_collapse(b, a, V, F, vf, vcount, face_alive, stamp, tick, shared, width, min_cos,
-                             min_quality):
+                             min_quality, dega, degb, nba, nbb):
                 alive[a] = False
                 alias[a] = b
                 applied[c] = True

@@ -222,8 +222,8 @@ class SurfaceDistance:
         top = float(d.max())  # inf or NaN anywhere makes the maximum non-finite
         if not np.isfinite(top):
             raise MetricError("GMDS needs finite distances, got inf or NaN (a mesh with several "
-                              "connected components has inf between them: use "
-                              "Mesh.largest_component())")
+                              "connected components has inf between them: --metric diffusion "
+                              "measures across them, or keep the largest, Mesh.largest_component())")
         if float(d.min()) < 0.0:
             raise MetricError(f"distances must be non-negative, got {float(d.min())!r}")
         self.mesh = mesh

@@ -46,14 +46,50 @@ def paired_half_edges(u: np.ndarray, v: np.ndarray, n: int) -> tuple[np.ndarray,
     return order[pair], order[pair + 1]
 
 
+def _simple_cycles(walk: list[int]) -> list[np.ndarray]:
+    """Split a closed walk along boundary edges (``walk[-1]`` back to ``walk[0]``) that passes
+    a vertex more than once into simple cycles, one per return to a vertex.
+
+    Where two holes touch at a vertex (two fans of faces meeting there, a bow-tie), the walk
+    may go round both holes before it closes: ``w, a1 .. ap, w, b1 .. bq``. Cutting it at the
+    second visit of ``w`` gives each hole's own loop, whichever way the walk turned at ``w``.
+    """
+    path: list[int] = []
+    at: dict[int, int] = {}
+    cycles = []
+    for v in list(walk) + [walk[0]]:
+        if v in at:
+            i = at[v]
+            cycles.append(np.asarray(path[i:], dtype=np.int64))
+            for u in path[i + 1:]:
+                del at[u]
+            del path[i + 1:]
+        else:
+            at[v] = len(path)
+            path.append(v)
+    return cycles
+
+
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.array(a, copy=True)
     a.flags.writeable = False
     return a
 
 
+#: Coordinates gromov accepts: at most this large in magnitude, and a shape at least
+#: ``1 / COORDINATE_LIMIT`` across (unless all its points coincide). Areas, squared lengths
+#: and the products of two of them (the cotangent Laplacian, fast marching's quadratic, the
+#: quadric simplifier) must stay finite and normal in double precision (about 1e+-308): a
+#: torus scaled by 1e100 made fast marching divide by zero and the sparse factorisation
+#: singular, one scaled by 1e-100 lost every triangle to underflow; scaled by 1e75 and 1e-75,
+#: ``gromov info``, both metrics, simplification and ``match`` work and scale exactly. The
+#: same bound as the file readers' :data:`gromov.io.MAX_COORDINATE`.
+COORDINATE_LIMIT = 1e75
+
+
 def as_vertices(vertices, *, name: str = "vertices") -> np.ndarray:
-    """Coerce to a finite ``(n, 3)`` float64 array or raise :class:`MeshError`."""
+    """Coerce to a finite ``(n, 3)`` float64 array within :data:`COORDINATE_LIMIT` or raise
+    :class:`MeshError`."""
     try:
         v = np.asarray(vertices, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -68,6 +104,18 @@ def as_vertices(vertices, *, name: str = "vertices") -> np.ndarray:
             f"{name} has {int(bad.sum())} non-finite (NaN or inf) coordinates, first at vertex "
             f"{int(np.flatnonzero(bad)[0])}"
         )
+    big = float(np.abs(v).max())
+    if big > COORDINATE_LIMIT:
+        raise MeshError(f"{name} reach {big:.3g} in magnitude; gromov computes squared lengths and "
+                        f"areas in double precision, which overflow there: scale the shape to "
+                        f"coordinates below {COORDINATE_LIMIT:.0e} (distances scale with it, "
+                        "correspondences do not change)")
+    extent = float(np.ptp(v, axis=0).max())
+    if 0.0 < extent < 1.0 / COORDINATE_LIMIT:
+        raise MeshError(f"{name} span only {extent:.3g}; gromov computes squared lengths and areas in "
+                        f"double precision, which underflow there: scale the shape to span more than "
+                        f"{1.0 / COORDINATE_LIMIT:.0e} (distances scale with it, correspondences do "
+                        "not change)")
     return v
 
 
@@ -165,7 +213,8 @@ def _knn_graph(points: np.ndarray, k: int) -> sp.csr_matrix:
 
     n = len(points)
     if not 1 <= k < n:
-        raise ValueError(f"k must be in [1, {n - 1}] for {n} points, got {k}")
+        raise ValueError(f"k must be in [1, {n - 1}] for {n} points, got {k} (the number of neighbours "
+                         f"of a point: --neighbors)")
     dist, idx = cKDTree(points).query(points, k=k + 1)
     rows = np.repeat(np.arange(n), k)
     # coincident points are neighbours at distance 0, but a stored 0 is no edge for a sparse
@@ -369,7 +418,10 @@ class Mesh(PointCloud):
                 if nxt is None:  # open chain (non-manifold boundary); stop here
                     break
                 cur = nxt
-            loops.append(np.asarray(loop, dtype=np.int64))
+            if cur == a and len(set(loop)) < len(loop):
+                loops.extend(_simple_cycles(loop))
+            else:
+                loops.append(np.asarray(loop, dtype=np.int64))
         loops.sort(key=len, reverse=True)
         return loops
 
@@ -553,7 +605,9 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     vertices and the faces ``(l_i, l_{i+1}, c)``, ordered against the face that holds the
     boundary edge ``(l_i, l_{i+1})`` so that an oriented mesh stays oriented. Loops as long as
     ``max_perimeter`` or longer (real open ends of a scan, a partial shape) are left open, and
-    so are loops that are not simple (two holes touching at a vertex).
+    so is the boundary of a triangle that hangs from the rest by one vertex (filling it would
+    add a closed bubble, not close a hole). Holes that touch at a vertex are filled each on its
+    own (:attr:`Mesh.boundary_loops` gives each its own loop).
 
     Small holes are usually acquisition noise: the surface was there and was not captured.
     Metrics computed on the filled surface see a hole as the patch that closes it; the
@@ -598,13 +652,17 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     directed = set((F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2) @ np.array([n, 1])).tolist())
     be = np.sort(mesh.boundary_edges, axis=1)
     boundary = set((be @ np.array([n, 1])).tolist())
+    indptr, incident = mesh.vertex_faces
     centres, fans = [], []
     for loop in mesh.boundary_loops:
         nxt = np.roll(loop, -1)
         lo, hi = np.minimum(loop, nxt), np.maximum(loop, nxt)
-        # only simple closed loops: a loop through a vertex twice (two holes touching at a
-        # bow-tie vertex) or not closed by boundary edges is left open
+        # only simple closed loops: a loop through a vertex twice or not closed by boundary
+        # edges is left open, and so is a triangle's own boundary (a triangle hanging by a vertex)
         if len(np.unique(loop)) < len(loop) or not all(int(k) in boundary for k in lo * n + hi):
+            continue
+        if len(loop) == 3 and any(set(F[f].tolist()) == set(loop.tolist())
+                                  for f in incident[indptr[loop[0]]:indptr[loop[0] + 1]]):
             continue
         if np.linalg.norm(V[nxt] - V[loop], axis=1).sum() >= bound[labels[loop[0]]]:
             continue

@@ -67,7 +67,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 from numba import get_num_threads, njit, prange
-from scipy.sparse.linalg import eigsh
+from scipy.sparse.linalg import ArpackError, eigsh
 from scipy.spatial.distance import cdist
 
 from ..errors import MetricError
@@ -85,10 +85,11 @@ logger = logging.getLogger(__name__)
 DIFFUSION_KERNELS = ("connectivity", "gaussian", "heat", "biharmonic")
 HEAT_UNITS = ("normalized", "raw", "length")
 #: Neighbours of each point in the robust point-cloud Laplacian (``robust_laplacian``'s
-#: ``n_neighbors``; its own default is 30). Chosen on held-out TOSCA classes (session 19, cls0 ->
-#: cls1 matched as clouds of their vertices: wolf 1, 2, horse 5, 6, centaur 1, 5, michael 1, 6):
-#: mean correspondence error 0.0277 / 0.0211 / 0.0309 with 10 / 20 / 30 neighbours. Fewer
-#: neighbours glue fewer parts that pass close in space (a hand near a thigh).
+#: ``n_neighbors``; its own default is 30). Chosen on held-out TOSCA classes (cls0 -> clsN
+#: matched as clouds of their vertices: wolf 1, 2, horse 5, 6, centaur 1, 5, michael 1, 6):
+#: mean correspondence error 0.0277 / 0.0211 / 0.0309 with 10 / 20 / 30 neighbours
+#: (``benchmarks/bench_point_clouds.py --neighbors 10,20,30``; docs/design/point-clouds.md).
+#: Fewer neighbours glue fewer parts that pass close in space (a hand near a thigh).
 POINT_CLOUD_NEIGHBORS = 20
 
 #: Default heat-kernel diffusion time relative to the area, per ``units`` (see
@@ -102,11 +103,16 @@ DEFAULT_UNITS = "raw"
 #: ``gromov match``, :func:`gromov.experiments.pairwise.match_pairs`, ``gromov reproduce``'s
 #: d(C, C0) table and TOPKIDS) and the options name neither ``units`` nor ``tau``
 #: (:func:`correspondence_options`). Chosen on the validation sets (held-out TOSCA classes and
-#: the synthetic set, sessions 14-15), where each task preferred its own: normalised heat
-#: distributions took d(C, C0) with welds from 0.023 to 0.013 (held-out) and 0.078 to 0.009
-#: (synthetic), while the raw distances kept the equal error rates with welds at 0% / 0.7%
-#: against 4.4% / 6.0% normalised (README, "Choices worth knowing").
+#: the synthetic set), where each task preferred its own: normalised heat distributions took
+#: d(C, C0) with welds from 0.023 to 0.013 (held-out) and 0.078 to 0.009 (synthetic), while the
+#: raw distances kept the equal error rates with welds at 0% / 0.7% against 4.4% / 6.0%
+#: normalised (docs/design/metrics.md, "Heat units").
 CORRESPONDENCE_UNITS = "normalized"
+#: Components of at most this many vertices are decomposed densely (no truncation).
+DENSE_COMPONENT = 200
+#: A connected shape on which ARPACK fails is decomposed densely up to this many vertices
+#: (about 10 s at 4,000); above, the failure is reported as a MetricError.
+DENSE_FALLBACK = 4000
 
 
 def correspondence_options(metric: str, options: dict | None) -> dict:
@@ -244,9 +250,77 @@ class _SpectralDiffusion(MetricSolver):
             from threadpoolctl import threadpool_limits
 
             with threadpool_limits(limits=1, user_api="blas"):
-                self._psi = self._compute_embedding()
+                self._psi = self._spectral()
             self._psi.flags.writeable = False
         return self._psi
+
+    def _spectral(self) -> np.ndarray:
+        """The embedding; one connected component at a time on a shape in several, densely
+        when ARPACK fails on a connected shape of at most :data:`DENSE_FALLBACK` vertices.
+
+        The operator of a shape in ``c`` components is block-diagonal and its eigenvalue 0
+        (Laplacian) or 1 (graph operator) has multiplicity ``c``, which a Krylov eigensolver
+        started from one vector resolves slowly or not at all: jointly, the connectivity-kernel
+        distances between two spheres came out 0 (the truth: 0.08), the heat distances on 8
+        copies of a sphere were off by their whole size, and 200 disjoint tetrahedra stopped
+        ARPACK (error 3). The eigenpairs of a block-diagonal operator are those of its blocks.
+        """
+        n_comp, labels = self._components()
+        if n_comp > 1:
+            return self._by_components(n_comp, labels)
+        return self._connected()
+
+    def _connected(self) -> np.ndarray:
+        """The embedding of a connected shape; densely where ARPACK fails on a small one."""
+        try:
+            return self._compute_embedding()
+        except ArpackError as exc:
+            if self.n_vertices <= DENSE_FALLBACK:
+                logger.info("diffusion: ARPACK failed (%s); dense eigendecomposition", exc)
+                return self._dense_embedding()
+            raise MetricError(f"diffusion metric: the sparse eigensolver (ARPACK) failed on this "
+                              f"{self.n_vertices}-vertex shape ({exc}); a smaller --resolution "
+                              f"(at most {DENSE_FALLBACK}) uses a dense eigendecomposition") from None
+
+    def _components(self) -> tuple[int, np.ndarray]:
+        """Connected components of the operator's graph (its nonzero pattern)."""
+        from scipy.sparse.csgraph import connected_components
+
+        return connected_components(self._operator_pattern(), directed=False)
+
+    def _by_components(self, n_comp: int, labels: np.ndarray) -> np.ndarray:
+        """The block-diagonal embedding: each component's eigenpairs on its own rows."""
+        logger.debug("diffusion: %d connected components decomposed one at a time", n_comp)
+        order = np.argsort(labels, kind="stable")
+        bounds = np.searchsorted(labels[order], np.arange(n_comp + 1))
+        blocks, lams, dropped = [], [], []
+        for c in range(n_comp):
+            idx = order[bounds[c]:bounds[c + 1]]
+            if len(idx) == 0:
+                continue
+            sub = self._block(idx)
+            psi_c = sub._dense_embedding() if len(idx) <= DENSE_COMPONENT else sub._connected()
+            blocks.append((idx, psi_c))
+            lams.append(np.asarray(sub.eigenvalues))
+            dropped.append(float(sub.truncation_bound))
+        psi = np.zeros((self.n_vertices, sum(b.shape[1] for _, b in blocks)))
+        col = 0
+        for idx, b in blocks:
+            psi[idx, col:col + b.shape[1]] = b
+            col += b.shape[1]
+        return self._assembled(np.concatenate(lams), psi, max(dropped))
+
+    def _operator_pattern(self):
+        raise NotImplementedError
+
+    def _block(self, idx: np.ndarray) -> "_SpectralDiffusion":
+        raise NotImplementedError
+
+    def _dense_embedding(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _assembled(self, lam: np.ndarray, psi: np.ndarray, bound: float) -> np.ndarray:
+        raise NotImplementedError
 
     @staticmethod
     def _mean_sq(psi: np.ndarray) -> float:
@@ -422,6 +496,24 @@ class GraphDiffusionSolver(_SpectralDiffusion):
         self.eigenvalues, self.truncation_bound = lam, 0.0
         return phi * lam**self.m
 
+    _dense_embedding = _dense
+
+    def _operator_pattern(self):
+        return self.operator
+
+    def _block(self, idx: np.ndarray) -> "GraphDiffusionSolver":
+        # the operator of a disconnected graph is block-diagonal (degrees are per row)
+        sub = GraphDiffusionSolver.__new__(GraphDiffusionSolver)
+        _SpectralDiffusion.__init__(sub, PointCloud(self.shape.vertices[idx]), self.rtol)
+        sub.kernel, sub.m, sub.density_normalize = self.kernel, self.m, self.density_normalize
+        sub.dense_below = self.dense_below
+        sub.operator = sp.csr_matrix(self.operator[idx][:, idx])
+        return sub
+
+    def _assembled(self, lam, psi, bound):
+        self.eigenvalues, self.truncation_bound = lam, bound
+        return psi
+
     def __repr__(self) -> str:
         return (f"GraphDiffusionSolver(n_vertices={self.n_vertices}, kernel={self.kernel!r}, "
                 f"m={self.m}, density_normalize={self.density_normalize})")
@@ -487,6 +579,38 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         self._basis: tuple[np.ndarray, np.ndarray] | None = None
         # the factor that puts d_t in units of length (see ``units``)
         self.unit_scale = float(np.sqrt(32.0 * np.pi) * self.t) if units == "length" else 1.0
+
+    def _dense_embedding(self):
+        lam, phi = _dense_generalized(self.stiffness, self.mass)
+        lam = np.maximum(lam, 0.0)
+        self.eigenvalues, self.truncation_bound = lam, 0.0
+        return self._scaled(lam, phi * np.exp(-lam * self.t))
+
+    def _operator_pattern(self):
+        return self.stiffness
+
+    def _components(self) -> tuple[int, np.ndarray]:
+        # a mesh's Laplacian couples the vertices of each connected component (a cotangent
+        # weight can be exactly 0, as on a diagonal between two right angles: not the pattern)
+        if isinstance(self.shape, Mesh):
+            return self.shape.n_components, self.shape.component_labels
+        return super()._components()
+
+    def _block(self, idx: np.ndarray) -> "HeatDiffusionSolver":
+        # one component at the same diffusion time t (not its own area's): raw distances
+        sub = HeatDiffusionSolver.__new__(HeatDiffusionSolver)
+        _SpectralDiffusion.__init__(sub, PointCloud(self.shape.vertices[idx]), self.rtol)
+        sub.stiffness = sp.csr_matrix(self.stiffness[idx][:, idx])
+        sub.mass = sp.csr_matrix(self.mass[idx][:, idx])
+        sub.area = float(sub.mass.diagonal().sum())
+        sub.t, sub.tau = self.t, self.t / sub.area
+        sub.units, sub.unit_scale, sub._basis = "raw", 1.0, None
+        sub.laplacian, sub.neighbors = self.laplacian, self.neighbors
+        return sub
+
+    def _assembled(self, lam, psi, bound):
+        self.eigenvalues, self.truncation_bound = lam, bound * self.unit_scale**2
+        return self._scaled(lam, psi)
 
     def _compute_embedding(self):
         n, t, area = self.n_vertices, self.t, self.area
@@ -589,7 +713,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         low = float(norms.min())
         if not low > 0:
             raise MetricError("a vertex has no heat at any kept eigenpair: cannot normalise its row "
-                              "(use units='raw')")
+                              "(raw heat distances need no normalisation: --units raw; units='raw')")
         psi /= norms[:, None]
         self.truncation_bound = float(2.0 * self.truncation_bound / low**2)
         return psi
@@ -631,7 +755,8 @@ def _laplacian(shape, laplacian: str, what: str, neighbors: int = POINT_CLOUD_NE
     if laplacian not in ("cotan", "robust"):
         raise ValueError(f"laplacian must be 'cotan' or 'robust', got {laplacian!r}")
     if isinstance(neighbors, (bool, np.bool_)) or not isinstance(neighbors, (int, np.integer)) or neighbors < 3:
-        raise ValueError(f"neighbors must be an integer >= 3, got {neighbors!r}")
+        raise ValueError(f"neighbors must be an integer >= 3, got {neighbors!r} (the number of "
+                         f"neighbours of a point: --neighbors)")
     laplacian = laplacian if isinstance(shape, Mesh) else "robust"
     if laplacian == "cotan":
         stiffness, mass = cotan_laplacian(shape)
@@ -640,16 +765,37 @@ def _laplacian(shape, laplacian: str, what: str, neighbors: int = POINT_CLOUD_NE
         import robust_laplacian as rl
 
         v = np.array(shape.vertices)
-        if isinstance(shape, Mesh):
-            lap, m = rl.mesh_laplacian(v, np.array(shape.faces))
-        else:
-            lap, m = _point_cloud_laplacian(rl, v, neighbors)
+        if not isinstance(shape, Mesh):
+            _check_spread(v, what)
+        try:
+            if isinstance(shape, Mesh):
+                lap, m = rl.mesh_laplacian(v, np.array(shape.faces))
+            else:
+                lap, m = _point_cloud_laplacian(rl, v, neighbors)
+        except (RuntimeError, ValueError) as exc:   # geometry-central's checks (GC_SAFETY_ASSERT)
+            raise MetricError(f"{what}: the robust Laplacian (robust-laplacian) cannot be built on this "
+                              f"{'mesh' if isinstance(shape, Mesh) else 'point cloud'} ({exc}); the "
+                              "geodesic metric (--metric geodesic) or the Gaussian kernel (--kernel "
+                              "gaussian) need no Laplacian") from None
         stiffness, mass = sp.csr_matrix(lap), sp.csr_matrix(m)
         area = float(mass.diagonal().sum())
-    if np.any(mass.diagonal() <= 0):
-        raise MetricError(f"{what} needs positive vertex areas: remove unreferenced or "
-                          "isolated vertices first (gromov.repair)")
+    if not (np.all(mass.diagonal() > 0) and np.isfinite(area)):
+        raise MetricError(f"{what} needs positive vertex areas: every vertex must be in a triangle of "
+                          "positive area (gromov.load and gromov.repair remove the others)")
     return laplacian, stiffness, mass, float(area)
+
+
+def _check_spread(points: np.ndarray, what: str) -> None:
+    """Refuse a point cloud whose points lie on one line (or at one place): no surface to
+    diffuse on, and the robust point-cloud Laplacian stops on it (geometry-central:
+    "unreferenced vertex")."""
+    c = points - points.mean(axis=0)
+    s = np.linalg.svd(c, compute_uv=False)
+    if s[0] == 0.0 or s[1] <= 1e-9 * s[0]:
+        where = "at one place" if s[0] == 0.0 else "on a line"
+        raise MetricError(f"{what}: the {len(points)} points lie {where}, with no surface to diffuse "
+                          "heat on; the geodesic metric (--metric geodesic) or the Gaussian kernel "
+                          "(--kernel gaussian) work on such a cloud")
 
 
 class BiharmonicSolver(MetricSolver):

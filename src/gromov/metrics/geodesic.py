@@ -100,8 +100,10 @@ class GeodesicSolver(MetricSolver):
             v = np.array(shape.vertices)
             if isinstance(shape, Mesh):
                 if shape.n_components > 1:
-                    raise MetricError("the heat method needs a connected mesh; use "
-                                      "mesh.largest_component() or method='fmm'")
+                    raise MetricError(f"the heat method of the geodesic metric needs a connected mesh, "
+                                      f"this one has {shape.n_components} components: the fast "
+                                      "marching (--geodesic-method fmm; method='fmm') measures each "
+                                      "piece")
                 self._impl = pp3d.MeshHeatMethodDistanceSolver(v, np.array(shape.faces),
                                                                t_coef=self.heat_t_coef)
             else:
