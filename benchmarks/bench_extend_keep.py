@@ -6,7 +6,7 @@ Run:  .venv/bin/python benchmarks/bench_extend_keep.py [--keep 0.7] [--metric di
 A welded vertex moves whole rows of the heat-kernel diffusion distances
 (``benchmarks/weld_rows.py``), and the RMS over the best-fitting 70% of *samples* prefers the
 true map over every wrong held-out map (``benchmarks/sample_trim_maps.py``).
-``gromov.match(..., extend_keep=K)`` with ``K < 1`` (opt-in) follows each extended
+``gromov.match(..., search=gromov.SearchOptions(extend_keep=K))`` with ``K < 1`` (opt-in) follows each extended
 start's discrete descent by ``gromov.gh.EXTEND_ROUNDS`` rounds that descend on the
 best-fitting fraction ``K`` of the samples and place the others given them. This compares it
 with the default search (``--keep 1``) on the held-out TOSCA classes (reference pose 0 against
@@ -49,7 +49,8 @@ def main(argv=None):
             if y.label in res or y.pose == 0 or (only and y.label not in only):
                 continue
             sy = gh.ShapeMetric(y.mesh, args.metric, resolution=None, metric_options=options)
-            q = _pair_quality(gh.match(sx, sy, args.metric, n_samples=100, extend_keep=args.keep),
+            q = _pair_quality(gh.match(sx, sy, args.metric, n_samples=100,
+                                       search=gh.SearchOptions(extend_keep=args.keep)),
                               shapes, ref, y)
             kind = y.kind if y.kind != "holes" else "holes" + str(y.info["holes"])
             res[y.label] = (kind, q["best"])

@@ -41,7 +41,7 @@ import numpy as np
 from gromov import farthest_point_sampling
 from gromov.experiments.datasets import TOSCA, experiment1, experiment2
 from gromov.experiments.reproduce import _pair_quality, _Shapes
-from gromov.gh import ShapeMetric, match
+from gromov.gh import SearchOptions, ShapeMetric, match
 from gromov.gmds import TRIM_KEEP, trimmed_rms
 from gromov.perturb import WELD_JOINS
 
@@ -124,7 +124,8 @@ def main(argv=None):
                 ok = truth >= 0
                 scale = float(np.median(sy.distances[np.ix_(truth[ok], truth[ok])][~np.eye(ok.sum(), dtype=bool)]
                                         / sx.distances[np.ix_(P[ok], P[ok])][~np.eye(ok.sum(), dtype=bool)]))
-                extra = {} if args.search_vertices is None else {"search_vertices": args.search_vertices}
+                extra = ({} if args.search_vertices is None else
+                         {"search": SearchOptions(search_vertices=args.search_vertices)})
                 if args.orientation is not None:
                     extra["orientation"] = args.orientation
                 if args.radius is not None:

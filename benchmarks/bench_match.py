@@ -37,7 +37,7 @@ import numpy as np
 import gromov
 from gromov.evaluate import correspondence_error
 from gromov.experiments.reproduce import reflection_map
-from gromov.gh import ShapeMetric, match
+from gromov.gh import SearchOptions, ShapeMetric, match
 from gromov.metrics.diffusion import correspondence_options
 
 HERE = Path(__file__).resolve().parent
@@ -99,10 +99,11 @@ def main(argv=None):
     a = np.full(len(P), 1.0 / len(P))
 
     # interleaved, best of max(repeat, 7): other work on the machine slows both alike
-    match(sx, sy, "geodesic", n_samples=args.samples, search_vertices=500)  # warm-up
+    on500 = SearchOptions(search_vertices=500)
+    match(sx, sy, "geodesic", n_samples=args.samples, search=on500)  # warm-up
     runs = {"ours": lambda: match(sx, sy, "geodesic", n_samples=args.samples),
             "ours, search on 500 vertices": lambda: match(sx, sy, "geodesic", n_samples=args.samples,
-                                                           search_vertices=500),
+                                                           search=on500),
             "ours, orientation ignored": lambda: match(sx, sy, "geodesic", n_samples=args.samples,
                                                        orientation="ignore"),
             "pot": lambda: ot.gromov.gromov_wasserstein(dx, dy, a, a, loss_fun="square_loss")}

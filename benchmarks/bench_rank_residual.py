@@ -44,7 +44,7 @@ from gromov.experiments.pairwise import _one_thread_per_worker, prepare
 from gromov.experiments.recognition import equal_error_rate
 from gromov.experiments.reproduce import DIFFUSION_FILL_HOLES, _collection, _Shapes, settings_for
 from gromov.experiments.synthetic import Synthetic
-from gromov.gh import RANK_TAU_SCALE, match, ranking_value
+from gromov.gh import RANK_TAU_SCALE, _match, ranking_value
 from gromov.gmds import SurfacePoints, SymmetricGMDS
 
 HELDOUT = {"wolf": 2, "horse": 4, "centaur": 5, "michael": 6}
@@ -66,8 +66,8 @@ def _pair(ij):
     i, j = ij
     x, y = _SHAPES[i], _SHAPES[j]
     heat = x.ranking_surface(RANK_TAU_SCALE) is not None
-    r = match(x, y, x.metric, n_samples=_N, seed=0, orientation="ignore",
-              rank_tau_scale=RANK_TAU_SCALE if heat else None, rank_residual="log")
+    r = _match(x, y, x.metric, n_samples=_N, seed=0, orientation="ignore", as_prepared=True,   # as gh_matrix
+               rank_tau_scale=RANK_TAU_SCALE if heat else None, rank_residual="log")
     ip = SurfacePoints(r.x_to_y_face, r.x_to_y_bary)   # on the working meshes (_keep_working)
     iq = SurfacePoints(r.y_to_x_face, r.y_to_x_bary)
     P, Q = x.samples(_N, 0), y.samples(_N, 0)   # match's samples (working ids)

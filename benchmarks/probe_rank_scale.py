@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import bench_rank_residual as B
 
-from gromov.gh import RANK_LOG_FLOOR, RANK_TAU_SCALE, match, ranking_value
+from gromov.gh import RANK_LOG_FLOOR, RANK_TAU_SCALE, _match, ranking_value
 from gromov.gmds import EmbeddedDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals, trimmed_rms
 
 
@@ -49,8 +49,8 @@ def _pair(ij):
     n = B._N
     if x.ranking_surface(RANK_TAU_SCALE) is None:
         raise SystemExit("this probe needs the heat-kernel diffusion metric")
-    r = match(x, y, x.metric, n_samples=n, seed=0, orientation="ignore",
-              rank_tau_scale=RANK_TAU_SCALE, rank_residual="log")
+    r = _match(x, y, x.metric, n_samples=n, seed=0, orientation="ignore", as_prepared=True,   # as gh_matrix
+               rank_tau_scale=RANK_TAU_SCALE, rank_residual="log")
     ip, iq = SurfacePoints(r.x_to_y_face, r.x_to_y_bary), SurfacePoints(r.y_to_x_face, r.y_to_x_bary)
     P, Q = x.samples(n, 0), y.samples(n, 0)
     (sx, dmx), (sy, dmy) = x.ranking_surface(RANK_TAU_SCALE), y.ranking_surface(RANK_TAU_SCALE)

@@ -67,7 +67,8 @@ def held_out_pair(data_dir):
         listed = experiment2 if "holes" in label else experiment1
         entries = [shapes.entry(e) for e in listed(tosca, {cls: 2})]
         y = next(e for e in entries if e.label == label)
-        return (shapes, entries[0], y, ShapeMetric(entries[0].mesh, metric, resolution=None),
-                ShapeMetric(y.mesh, metric, resolution=None))
+        opts = {"units": "raw"} if metric == "diffusion" else {}   # the heat kernel in raw units
+        return (shapes, entries[0], y, ShapeMetric(entries[0].mesh, metric, resolution=None, metric_options=opts),
+                ShapeMetric(y.mesh, metric, resolution=None, metric_options=opts))
 
     return make

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import gromov
-from gromov import Mesh, match
+from gromov import Mesh, SearchOptions, match
 from gromov.gh import ShapeMetric
 from gromov.gmds import norm_value, parse_norm
 from gromov.shapes import grid, rolled_grid, torus
@@ -184,11 +184,11 @@ def test_trimmed_extension_finds_the_isometry():
     refused."""
     x, y = grid(21, 11), rolled_grid(21, 11)
     plain = match(x, y, "geodesic", n_samples=20, resolution=None)
-    lts = match(x, y, "geodesic", n_samples=20, resolution=None, extend_keep=0.7)
+    lts = match(x, y, "geodesic", n_samples=20, resolution=None, search=SearchOptions(extend_keep=0.7))
     assert lts.relative_distance < 0.01 and plain.relative_distance < 0.01
     for bad in (0.0, 1.2):
         with pytest.raises(ValueError, match="extend_keep"):
-            match(x, y, "geodesic", n_samples=20, resolution=None, extend_keep=bad)
+            match(x, y, "geodesic", n_samples=20, resolution=None, search=SearchOptions(extend_keep=bad))
 
 
 def test_result_fields_and_gw_solver():
@@ -232,11 +232,12 @@ def test_errors():
     for bad in ({"n_starts": 0}, {"n_extend": 0}, {"n_extend": 2.5}, {"n_starts": True},
                 {"search_vertices": 0}, {"search_vertices": 50.0}):
         with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive integer"):
-            match(x, x, "geodesic", n_samples=10, resolution=None, **bad)
+            match(x, x, "geodesic", n_samples=10, resolution=None, search=SearchOptions(**bad))
     for bad in ([], [(0, None)], [(12, 0)], "x", [(12,)]):
         with pytest.raises(ValueError, match="coarse_stages must be"):
-            match(x, x, "geodesic", n_samples=10, resolution=None, coarse_stages=bad)
-    r = match(x, x, "geodesic", n_samples=10, resolution=None, n_starts=np.int64(4), n_extend=np.uint8(2))
+            match(x, x, "geodesic", n_samples=10, resolution=None, search=SearchOptions(coarse_stages=bad))
+    r = match(x, x, "geodesic", n_samples=10, resolution=None,
+              search=SearchOptions(n_starts=np.int64(4), n_extend=np.uint8(2)))
     assert r.relative_distance < 1e-9  # numpy integers are integers
 
 
@@ -256,12 +257,12 @@ def test_search_on_a_vertex_subset_then_polished_on_all_vertices():
     cost = np.sqrt(np.mean((dx - sy.distances[np.ix_(img, img)]) ** 2))
     assert cost < 1e-9 * sx.diameter  # exact: the grid maps onto itself vertex by vertex
     assert not np.isin(img, dom).all()
-    r = match(sx, sy, "geodesic", n_samples=40, search_vertices=60)
+    r = match(sx, sy, "geodesic", n_samples=40, search=SearchOptions(search_vertices=60))
     assert r.relative_distance < 1e-3
     # a coarse stage over a vertex subset, beside one over all vertices: the same isometry
     img2 = greedy_init(dx, sy.distances, np.arange(0, y.n_vertices, 7), stages=[(6, None), (10, dom)])
     assert np.sqrt(np.mean((dx - sy.distances[np.ix_(img2, img2)]) ** 2)) < 1e-9 * sx.diameter
-    r = match(sx, sy, "geodesic", n_samples=40, coarse_stages=[(12, None), (20, 60)])
+    r = match(sx, sy, "geodesic", n_samples=40, search=SearchOptions(coarse_stages=[(12, None), (20, 60)]))
     assert r.relative_distance < 1e-3
 
 
@@ -340,7 +341,8 @@ def test_same_class_is_closer_on_tosca(tosca_shapes, metric):
     non-isometric pose) farther than victoria0 in the same reference pose, so it is left out
     of the assertion (docs/design/metrics.md, "Geodesic distances").
     """
-    s = {n: ShapeMetric(m, metric, resolution=2000) for n, m in tosca_shapes.items()}
+    opts = {"units": "raw"} if metric == "diffusion" else None   # the heat kernel in recognition's units
+    s = {n: ShapeMetric(m, metric, resolution=2000, metric_options=opts) for n, m in tosca_shapes.items()}
     d = lambda a, b: match(s[a], s[b], metric, n_samples=60).relative_distance  # noqa: E731
     assert d("cat0", "cat1") < d("cat0", "dog0")
     if metric == "diffusion":
@@ -539,8 +541,8 @@ def test_trimmed_distortion_sets_a_weld_aside_on_tosca(data_dir):
     """Why recognition ranks by the trimmed distortion. A weld changes the distances of the
     pairs whose paths run through it, a different shape those of most pairs: the welded pose's
     distortion is concentrated in few pairs (its trimmed distortion is a small part of the
-    RMS) and that of a wolf against a horse is spread (a large part). Measured (diffusion,
-    2,000 vertices, 60 samples): trimmed / RMS 0.12 for wolf0 vs wolf1 with 2 welds (0.10-0.12
+    RMS) and that of a wolf against a horse is spread (a large part). Measured (diffusion in
+    raw heat units, 2,000 vertices, 60 samples): trimmed / RMS 0.12 for wolf0 vs wolf1 with 2 welds (0.10-0.12
     for weld seeds 0-3), 0.34 for wolf0 vs horse0, 0.33 for wolf0 vs the clean wolf1."""
     from gromov.perturb import weld
 
@@ -548,18 +550,19 @@ def test_trimmed_distortion_sets_a_weld_aside_on_tosca(data_dir):
     wx = gromov.simplify(gromov.load(tosca / "wolf0.off.gz"), 2000)
     welded = weld(wx.transfer(gromov.load(tosca / "wolf1.off.gz")).mesh, 2, seed=0).mesh
     horse = gromov.simplify(gromov.load(tosca / "horse0.off.gz"), 2000).mesh
-    sx = ShapeMetric(wx.mesh, "diffusion", resolution=None)
+    raw = {"units": "raw"}
+    sx = ShapeMetric(wx.mesh, "diffusion", resolution=None, metric_options=raw)
     share = {}
     for name, mesh in (("welded", welded), ("horse", horse)):
-        r = match(sx, ShapeMetric(mesh, "diffusion", resolution=None), "diffusion", n_samples=60,
-                  orientation="ignore")
+        r = match(sx, ShapeMetric(mesh, "diffusion", resolution=None, metric_options=raw), "diffusion",
+                  n_samples=60, orientation="ignore")
         share[name] = r.distortion_trimmed / r.distortion_l2
     assert share["welded"] < share["horse"] - 0.1, share
 
 
 def test_signature_stages_find_the_centaur_map_that_distances_alone_miss(held_out_pair):
     """centaur0 -> centaur1 with 10 holes (held-out class, built as ``gromov reproduce`` builds
-    it), default diffusion metric. The first 12 samples are the extremities, all 0.80-1.00 of
+    it), diffusion metric in raw heat units. The first 12 samples are the extremities, all 0.80-1.00 of
     the diameter apart (clean centaur1): from the right first image the greedy placement
     sends the second sample half the diameter astray, and without signatures every coarse
     start is wrong (d(C, C0) 0.079, a map of higher distortion than the ground truth's). The
@@ -568,12 +571,12 @@ def test_signature_stages_find_the_centaur_map_that_distances_alone_miss(held_ou
     from gromov.gh import match
 
     shapes, ref, y, sx, sy = held_out_pair("centaur", "centaur1+holes10")
-    without = _pair_quality(match(sx, sy, "diffusion", signature_weight=0.0), shapes, ref, y)
+    without = _pair_quality(match(sx, sy, "diffusion", search=SearchOptions(signature_weight=0.0)), shapes, ref, y)
     with_ = _pair_quality(match(sx, sy, "diffusion"), shapes, ref, y)
     assert without["best"] > 0.05
     assert with_["best"] < 0.035
     with pytest.raises(ValueError, match="signature_weight"):
-        match(sx, sy, "diffusion", signature_weight=-1.0)
+        match(sx, sy, "diffusion", search=SearchOptions(signature_weight=-1.0))
 
 
 def test_signature_mismatch_vanishes_at_the_same_vertex():
@@ -610,10 +613,11 @@ def test_embedded_distance_interpolates_like_the_dense_matrix():
 
 
 def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
-    """match(rank_tau_scale=s): the correspondence and the GH estimate do not change; at s = 1
+    """Recognition's match (rank_tau_scale=s): the correspondence and the GH estimate do not change; at s = 1
     the ranking distance is the trimmed distortion itself; at 1/2 it is that correspondence's
     trimmed distortion in the heat distance at half the time (checked against a solver built
     at that time); other metrics and None give relative_trimmed; bad values raise."""
+    from gromov.gh import _match
     from gromov.gmds import SurfacePoints, SymmetricGMDS, trimmed_rms
 
     a, b = bumpy_torus(), moved_and_permuted(bumpy_torus(), 3)
@@ -621,8 +625,8 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     x = ShapeMetric(a, "diffusion", resolution=None, metric_options={"units": "raw"})
     y = ShapeMetric(b, "diffusion", resolution=None, metric_options={"units": "raw"})
     plain = match(x, y, n_samples=30, orientation="ignore")
-    one = match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=1.0)
-    half = match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=0.5)
+    one = _match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=1.0)
+    half = _match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=0.5)
     assert plain.ranking_distance == plain.relative_trimmed
     assert one.ranking_distance == pytest.approx(one.relative_trimmed, rel=1e-9)
     for r in (one, half):
@@ -637,7 +641,7 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     assert half.ranking_distance == pytest.approx(want, rel=1e-3)
     assert abs(half.ranking_distance - half.relative_trimmed) > 1e-3 * half.relative_trimmed
     # rank_residual="log": the same blocks' log ratios; the correspondence does not change
-    logged = match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=0.5, rank_residual="log")
+    logged = _match(x, y, n_samples=30, orientation="ignore", rank_tau_scale=0.5, rank_residual="log")
     assert logged.distance == half.distance and np.array_equal(logged.x_to_y_face, half.x_to_y_face)
     from gromov.gh import RANK_LOG_FLOOR
     from gromov.gmds import log_ratio_residuals
@@ -646,8 +650,8 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     want = 0.5 * trimmed_rms(log_ratio_residuals(ex, ey, RANK_LOG_FLOOR * diam))
     assert logged.ranking_distance == pytest.approx(want, rel=1e-3)
     with pytest.raises(ValueError, match="rank_residual"):
-        match(x, y, n_samples=30, rank_residual="logratio")
-    geo = match(a, b, "geodesic", n_samples=20, resolution=None, rank_tau_scale=0.5)
+        _match(x, y, n_samples=30, rank_residual="logratio")
+    geo = _match(a, b, "geodesic", n_samples=20, resolution=None, rank_tau_scale=0.5)
     assert geo.ranking_distance == geo.relative_trimmed
     # the paper's graph diffusion, behind the hole-filling wrapper: not a heat kernel either
     keep = np.ones(a.n_faces, bool)
@@ -655,12 +659,12 @@ def test_ranking_distance_measures_the_same_correspondence_at_a_finer_scale():
     holed = Mesh(a.vertices, a.faces[keep])
     graph = ShapeMetric(holed, "diffusion", resolution=None, metric_options={"kernel": "connectivity"})
     assert type(graph.solver).__name__ == "RestrictedSolver" and graph.ranking_surface(0.5) is None
-    g = match(graph, ShapeMetric(b, "diffusion", resolution=None, metric_options={"kernel": "connectivity"}),
-              n_samples=20, rank_tau_scale=0.5)
+    g = _match(graph, ShapeMetric(b, "diffusion", resolution=None, metric_options={"kernel": "connectivity"}),
+               n_samples=20, rank_tau_scale=0.5)
     assert g.ranking_distance == g.relative_trimmed
     for bad in (0, -1.0, float("inf"), "0.5"):
         with pytest.raises(ValueError, match="rank_tau_scale must be"):
-            match(x, y, n_samples=30, rank_tau_scale=bad)
+            _match(x, y, n_samples=30, rank_tau_scale=bad)
 
 
 def test_two_shapes_prepared_with_different_metrics_warn():

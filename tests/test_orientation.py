@@ -143,8 +143,9 @@ def test_prefer_returns_the_direct_map_on_the_tosca_cat(data_dir):
     x = ShapeMetric(gromov.load(data_dir / "tosca" / "cat0.off.gz"), "geodesic")
     y = ShapeMetric(gromov.load(data_dir / "tosca" / "cat1.off.gz"), "geodesic")
     mirror = reflection_map(x.input)
-    plain = match(x, y, "geodesic", orientation="ignore", extend_keep=1.0, signature_weight=0.0)
-    kept = match(x, y, "geodesic", extend_keep=1.0, signature_weight=0.0)  # orientation="prefer"
+    search = gromov.SearchOptions(extend_keep=1.0, signature_weight=0.0)
+    plain = match(x, y, "geodesic", orientation="ignore", search=search)
+    kept = match(x, y, "geodesic", search=search)  # orientation="prefer"
     e_plain = correspondence_error(plain, y, symmetry=mirror)
     e_kept = correspondence_error(kept, y, symmetry=mirror)
     assert e_plain.branch == "mirrored" and plain.orientation < 0.5

@@ -80,12 +80,13 @@ def test_known_pairs_are_not_run_again():
 
 def test_prepare_computes_the_search_subsets_once_per_shape():
     from gromov.experiments.pairwise import _subsets, prepare
+    from gromov import SearchOptions
     from gromov.gh import DEFAULT_COARSE_STAGES, search_subsets
 
     shapes, _ = _sheets()
     # the default search's subsets, or the one of search_vertices
     assert _subsets({}) == [k for _, k in DEFAULT_COARSE_STAGES if k is not None]
-    assert _subsets({"search_vertices": 40}) == [40]
+    assert _subsets({"search": SearchOptions(search_vertices=40)}) == [40]
     assert search_subsets(((12, None),)) == []
     (s,) = prepare(shapes[:1], "geodesic", n_samples=10, resolution=None, subsets=[40])
     # the subset match will ask for is already there (no farthest point sampling per pair)
@@ -152,13 +153,13 @@ def test_recognition_ranks_by_the_distortion_at_the_finer_scale():
     assert r.rank_tau_scale == RANK_TAU_SCALE == 0.5 and old.rank_tau_scale is None
     assert r.rank_residual == RANK_RESIDUAL == "log" and old.rank_residual == "difference"
     np.testing.assert_array_equal(r.distance, old.distance)
-    from gromov import match
+    from gromov.gh import _match   # what gh_matrix runs per pair
 
-    one = match(shapes[0], shapes[2], "diffusion", n_samples=20, resolution=None, metric_options=opts,
-                orientation="ignore", rank_tau_scale=0.5, rank_residual="log")
+    one = _match(shapes[0], shapes[2], "diffusion", n_samples=20, resolution=None, metric_options=opts,
+                 orientation="ignore", rank_tau_scale=0.5, rank_residual="log")
     assert r.trimmed[0, 2] == one.ranking_distance and r.relative[0, 2] == one.relative_distance
-    diff = match(shapes[0], shapes[2], "diffusion", n_samples=20, resolution=None, metric_options=opts,
-                 orientation="ignore", rank_tau_scale=0.5)   # match's default: differences
+    diff = _match(shapes[0], shapes[2], "diffusion", n_samples=20, resolution=None, metric_options=opts,
+                  orientation="ignore", rank_tau_scale=0.5)   # match's default: differences
     assert diff.distance == one.distance and diff.ranking_distance != one.ranking_distance
     with pytest.raises(ValueError, match="rank_residual"):
         gh_matrix(shapes, "diffusion", n_samples=20, resolution=None, rank_residual="ratio")

@@ -164,16 +164,16 @@ def test_cached_rows_are_the_solvers_rows():
 
 
 def test_a_match_measures_both_sides_in_the_same_metric():
-    """Without metric_options, the shape not prepared yet takes the prepared one's options
-    (a raw ShapeMetric against a mesh: raw on both sides); with none prepared, the
-    correspondence's defaults."""
+    """Without metric_options, the shape not prepared yet takes the correspondence options of
+    the prepared one's (a ShapeMetric with default options against a mesh: normalised units
+    on both sides, as for two meshes); with none prepared, the correspondence's defaults."""
     from gromov.gh import ShapeMetric, match, match_options_for
     from gromov.shapes import icosphere, rolled_grid
 
     x, y = grid(21, 11), rolled_grid(21, 11)
-    for opts in ({}, {"units": "normalized"}):
+    for opts in ({}, {"units": "normalized"}, {"units": "raw"}):
         sx = ShapeMetric(x, "diffusion", resolution=None, metric_options=opts)
-        assert match_options_for((sx, y), "diffusion", None) == opts
+        assert match_options_for((sx, y), "diffusion", None) == (opts or {"units": "normalized"})
         a = match(sx, y, "diffusion", n_samples=20, resolution=None)
         b = match(sx, ShapeMetric(y, "diffusion", resolution=None, metric_options=opts), "diffusion",
                   n_samples=20, resolution=None)

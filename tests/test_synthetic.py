@@ -187,7 +187,7 @@ def test_holes(data, shapes):
 
 def test_gh_distance_separates_the_classes(shapes):
     """Diffusion GH (30 samples, 300-vertex working meshes): within < similar < dissimilar."""
-    metric = {k: gromov.ShapeMetric(shapes[k], "diffusion", resolution=300)
+    metric = {k: gromov.ShapeMetric(shapes[k], "diffusion", resolution=300, metric_options={"units": "raw"})
               for k in [("cat", 0), ("cat", 3), ("dog", 0), ("david", 0), ("david", 4),
                         ("victoria", 0)]}
 

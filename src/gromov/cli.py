@@ -1,4 +1,4 @@
-"""Command-line interface: ``gromov info|distances|match|pairwise|perturb|reproduce|demo``.
+"""Command-line interface: ``gromov info|distances|match|index|pairwise|perturb|reproduce|demo``.
 
 Thin: parses arguments, calls the library, prints. User errors (unreadable file, bad
 option values, a metric that cannot be computed) print one line ``gromov: error: ...``
@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import re
 import sys
 import time
 import warnings
@@ -19,6 +20,7 @@ import numpy as np
 
 from . import __version__
 from ._atomic import atomic_path, atomic_savez_compressed
+from ._json import finite as _finite
 from .errors import GromovError
 
 __all__ = ["main"]
@@ -28,6 +30,37 @@ DEFAULT_RESOLUTION = 3000
 
 class _UserError(Exception):
     pass
+
+
+def _dumps(o) -> str:
+    """One JSON object, standard JSON only (``allow_nan=False``)."""
+    return json.dumps(_finite(o), allow_nan=False)
+
+
+#: Dense (n, n) float64 distance matrices held while one is computed: the matrix and a
+#: transient of its size (``gromov distances`` on TOSCA cat0, 2,000 -> 4,000 working vertices:
+#: peak memory 0.36 -> 0.55 GB with the diffusion metric, 0.35 -> 0.45 GB geodesic; ``gromov
+#: match`` at 1,500 -> 3,000: 0.37 -> 0.60 GB; ``/usr/bin/time -f %M``).
+DENSE_COPIES = 2
+
+
+def _check_memory(sizes: list[int], what: str) -> None:
+    """Refuse, before any metric is computed, working sizes whose dense distance matrices
+    (8 n^2 bytes each, :data:`DENSE_COPIES` while computed) need more memory than is available."""
+    from .experiments.pairwise import _available_memory
+
+    have = _available_memory()
+    need = sum(DENSE_COPIES * 8 * n * n for n in sizes)
+    if have is None or need <= have:
+        return
+    fit = int(np.sqrt(have / (DENSE_COPIES * 8 * len(sizes))) // 100 * 100)
+    gb = lambda b: f"{b / 1e9:.1f} GB" if b >= 1e9 else f"{b / 1e6:.1f} MB"  # noqa: E731
+    n = max(sizes)
+    matrices = "matrices" if len(sizes) > 1 else "matrix"
+    raise _UserError(f"{what}: {len(sizes)} dense distance {matrices} of up to {n:,} working "
+                     f"vertices need about {gb(need)} (8 bytes x n^2 each, {DENSE_COPIES}x "
+                     f"while computed) and {gb(have)} of memory are available; a --resolution of at "
+                     f"most {fit:,} fits")
 
 
 def _positive_int(text: str) -> int:
@@ -40,6 +73,16 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _nonnegative_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {v}")
+    return v
+
+
 def _nonnegative_float(text: str) -> float:
     try:
         v = float(text)
@@ -48,6 +91,30 @@ def _nonnegative_float(text: str) -> float:
     if not (np.isfinite(v) and v >= 0):
         raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {v}")
     return v
+
+
+_SIZE = re.compile(r"(\d+(?:\.\d+)?)\s*([kmgt]?)(?:i?b)?", re.ASCII | re.IGNORECASE)
+
+
+def _size(text: str) -> int:
+    """``--max-decompressed``: bytes, or a number with K, M, G or T (powers of 1024)."""
+    m = _SIZE.fullmatch(text.strip())
+    if m is None:
+        raise argparse.ArgumentTypeError(f"expected a size such as 4G, 500M or 1000000 (bytes), "
+                                         f"got {text[:40]!r}")
+    v = int(float(m.group(1)) * 1024 ** " kmgt".index(m.group(2).lower() or " "))
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a size of at least 1 byte, got {text!r}")
+    return v
+
+
+def _add_input_args(p: argparse.ArgumentParser) -> None:
+    from .io import GZIP_FLOOR, GZIP_RATIO
+
+    p.add_argument("--max-decompressed", type=_size, default=None, metavar="SIZE",
+                   help=f"largest size a .gz input (or a compressed MATLAB variable) may decompress to, "
+                        f"e.g. 4G (default: {GZIP_RATIO} times the compressed size, at least "
+                        f"{GZIP_FLOOR // 2**20}M; refuses gzip bombs)")
 
 
 def _classes(text: str) -> dict:
@@ -140,7 +207,7 @@ def _add_rank_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rank-residual", choices=RANK_RESIDUALS, default=RANK_RESIDUAL,
                    help=f"the trimmed ranking summarises the log ratios of corresponding distances "
                         f"(log: a multiplicative distortion) or their differences over the larger "
-                        f"diameter (difference: before session 17; default {RANK_RESIDUAL})")
+                        f"diameter (difference: the additive form; default {RANK_RESIDUAL})")
     p.add_argument("--local-scaling", type=_positive_int, default=None, metavar="K",
                    help=f"the EER is also reported after local scaling: each distance over the "
                         f"geometric mean of the two shapes' distances to their K-th nearest shape (a "
@@ -187,10 +254,24 @@ def _add_metric_args(p: argparse.ArgumentParser, units_default: str | None = Non
     _add_heat_args(p, units_default)
 
 
-def _load(path: str):
+def _load(path: str, args=None):
     from .io import load
 
-    return load(path)
+    return load(path, max_decompressed=getattr(args, "max_decompressed", None))
+
+
+def _check_pieces(args, path: str, shape) -> None:
+    """Matching needs finite distances: refuse a mesh in several pieces with a metric that is
+    infinite between them (geodesic, biharmonic), before any metric is computed."""
+    from .mesh import Mesh
+
+    infinite = args.metric == "geodesic" or (args.metric == "diffusion" and args.kernel == "biharmonic")
+    if infinite and isinstance(shape, Mesh) and shape.n_components > 1:
+        what = "geodesic" if args.metric == "geodesic" else "biharmonic"
+        raise _UserError(f"{path}: the working mesh has {shape.n_components} connected components; "
+                         f"{what} distances between them are infinite and matching needs finite ones: "
+                         "--metric diffusion --kernel heat measures across them (or match the largest "
+                         "piece on its own)")
 
 
 def _check_neighbors(args, shapes) -> None:
@@ -215,7 +296,7 @@ def cmd_info(args) -> int:
     from .mesh import Mesh
     from .metrics import GeodesicSolver
 
-    shape = _load(args.mesh)
+    shape = _load(args.mesh, args)
     if not isinstance(shape, Mesh):
         lo, hi = shape.bbox
         info = {"file": args.mesh, "type": "point cloud", "vertices": shape.n_vertices,
@@ -226,7 +307,7 @@ def cmd_info(args) -> int:
         info["geodesic_diameter"] = GeodesicSolver(shape).diameter()
         info["diameter_seconds"] = round(time.perf_counter() - t, 3)
     if args.json:
-        print(json.dumps(info))
+        print(_dumps(info))
         return 0
     width = max(len(k) for k in info)
     for k, v in info.items():
@@ -243,11 +324,13 @@ def cmd_distances(args) -> int:
     from .resolution import working_shape
     from .sampling import farthest_point_sampling
 
-    shape = _load(args.mesh)
+    shape = _load(args.mesh, args)
     _check_neighbors(args, [shape])
     t0 = time.perf_counter()
     work = working_shape(shape, args.resolution)   # a point cloud's: farthest points in space
     target, to_input = work.mesh, work.to_input_ids
+    if args.samples is None:
+        _check_memory([target.n_vertices], f"--resolution {args.resolution}")
     if args.samples is not None and args.samples > target.n_vertices:
         raise _UserError(f"--samples {args.samples} is more than the {target.n_vertices} vertices "
                          f"of the working mesh of {args.mesh}")
@@ -264,6 +347,13 @@ def cmd_distances(args) -> int:
         idx, radius = fps.indices, fps.radius
         dist = solver.submatrix(idx)
     seconds = time.perf_counter() - t0
+    if np.isnan(dist).any():
+        raise _UserError(f"{args.mesh}: the {args.metric} distances came out undefined (NaN) for "
+                         f"{int(np.isnan(dist).sum())} pairs; nothing was written")
+    if np.isinf(dist).any():
+        warnings.warn(f"{args.mesh}: {int(np.isinf(dist).sum()) // 2} pairs are infinitely far apart in "
+                      f"the {args.metric} metric (parts of the working shape that no path joins); "
+                      "they are written as inf", stacklevel=1)
     out = Path(args.out)
     if out.parent and not out.parent.exists():
         raise _UserError(f"output folder {out.parent} does not exist")
@@ -291,10 +381,11 @@ def _norm_arg(text: str) -> str:
 
 def cmd_match(args) -> int:
     from .gh import ShapeMetric, match
+    from .search import SearchOptions
     from .metrics.diffusion import correspondence_options
 
     options = correspondence_options(args.metric, _metric_options(args))
-    inputs = [_load(path) for path in (args.x, args.y)]
+    inputs = [_load(path, args) for path in (args.x, args.y)]
     _check_neighbors(args, inputs)
     shapes = [ShapeMetric(shape, args.metric, resolution=args.resolution, metric_options=options)
               for shape in inputs]
@@ -302,6 +393,8 @@ def cmd_match(args) -> int:
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working {'mesh' if s.has_faces else 'point set'} of {path}")
+        _check_pieces(args, path, s.mesh)
+    _check_memory([s.mesh.n_vertices for s in shapes], f"--resolution {args.resolution}")
     dense = bool(args.dense or args.map or args.html)
     if dense and args.dense == "placed":
         dense = "placed"
@@ -331,10 +424,16 @@ def cmd_match(args) -> int:
         for s in shapes:
             s.distances
             bar.update(1)
+    for path, s in zip((args.x, args.y), shapes):
+        if not s.finite:   # a point cloud whose neighbour graph falls apart
+            raise _UserError(f"{path}: some of its points are infinitely far apart in the {args.metric} "
+                             f"metric (the point cloud's neighbour graph falls apart) and matching needs "
+                             f"finite distances: more neighbours (--neighbors K) join it, or --metric "
+                             f"diffusion measures across the pieces")
+    search = SearchOptions(search_vertices=args.search_vertices,
+                           **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
-              solver=args.solver, seed=args.seed, search_vertices=args.search_vertices,
-              orientation=args.orientation, dense=dense,
-              **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
+              solver=args.solver, seed=args.seed, orientation=args.orientation, dense=dense, search=search)
     if args.out:
         atomic_savez_compressed(Path(args.out), **r.arrays())
     if args.map:   # SHREC's exchange format: one 1-based vertex id of Y per vertex of X
@@ -348,7 +447,7 @@ def cmd_match(args) -> int:
         write_match_html(shapes[0].input, shapes[1].input, r, args.html,
                          titles=(Path(args.x).name, Path(args.y).name))
     if args.json:   # the metric's options too: the distance's units depend on them
-        print(json.dumps({**r.to_dict(), "metric_options": options}))
+        print(_dumps({**r.to_dict(), "metric_options": options}))
     else:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
               f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
@@ -432,6 +531,76 @@ def _pairwise_labels(args, n: int) -> list[str] | None:
     return labels
 
 
+class _StoreWarnings(logging.Handler):
+    """Prints the store's warnings (an invalid entry, a changed file) as one line each,
+    ``gromov: warning: ...``; passes its other records on to the root logger."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.WARNING:   # on its own line under a progress bar
+            from tqdm import tqdm
+
+            tqdm.write(f"gromov: warning: {record.getMessage()}", file=sys.stderr)
+        else:
+            logging.getLogger().handle(record)
+
+
+def _open_store(args):
+    """``(store, handler)``: the ``--store`` of ``index`` and ``pairwise``, whose warnings the
+    handler prints (:func:`_close_store` removes it); ``(None, None)`` without ``--store``."""
+    if getattr(args, "store", None) is None:
+        return None, None
+    from .store import ShapeStore
+
+    log = logging.getLogger("gromov.store")
+    handler = _StoreWarnings()
+    log.addHandler(handler)
+    log.propagate = False
+    try:
+        return ShapeStore(args.store, load=lambda path: _load(path, args)), handler
+    except BaseException:
+        _close_store(None, handler)
+        raise
+
+
+def _close_store(store, handler) -> None:
+    if store is not None:
+        store.close()
+    if handler is not None:
+        log = logging.getLogger("gromov.store")
+        log.removeHandler(handler)
+        log.propagate = True
+
+
+def _stored_shapes(store, args, options: dict, progress: bool) -> list:
+    """Each file's ShapeMetric from the store (loaded and computed only when not stored yet),
+    checked as ``pairwise`` checks loaded files."""
+    if getattr(args, "neighbors", None) is not None:   # (a user error found before any metric)
+        _check_neighbors(args, [_load(f, args) for f in args.files])
+    shapes = store.shapes(args.files, args.metric, resolution=args.resolution, metric_options=options,
+                          rank_tau_scale=args.rank_tau_scale, progress=progress)
+    for path, s in zip(args.files, shapes):
+        if getattr(args, "samples", 0) > s.mesh.n_vertices:
+            raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} vertices "
+                             f"of the working set of {path}")
+    return shapes
+
+
+def cmd_index(args) -> int:
+    options = _metric_options(args)
+    t = time.perf_counter()
+    store, handler = _open_store(args)
+    try:
+        _stored_shapes(store, args, options, progress=not args.quiet)
+        size = sum(e.bytes for e in store.entries())
+    finally:
+        _close_store(store, handler)
+    if not args.quiet:
+        n = len(args.files)
+        print(f"{n} file{'s' if n != 1 else ''} in {args.store}: {store.computed} computed, {store.reused} "
+              f"read back; {time.perf_counter() - t:.1f} s; {size / 1e6:.1f} MB of entries")
+    return 0
+
+
 def cmd_pairwise(args) -> int:
     from .experiments.pairwise import available_cpus, gh_matrix
     from .experiments.recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, roc
@@ -466,21 +635,33 @@ def cmd_pairwise(args) -> int:
             import matplotlib  # noqa: F401
         except ImportError:
             raise _UserError("--mds needs matplotlib: pip install 'gromov[plot]'") from None
-    shapes = []
-    for path in args.files:   # meshes or point clouds (their images are then points)
-        shape = _load(path)
-        work = min(args.resolution, shape.n_vertices)
-        if args.samples > work:
-            raise _UserError(f"--samples {args.samples} is more than the {work} vertices of the "
-                             f"working set of {path}")
-        shapes.append(shape)
-    _check_neighbors(args, shapes)
-    options = _metric_options(args)
     t = time.perf_counter()
-    r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
-                  metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
-                  progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
-                  rank_residual=args.rank_residual)
+    store, handler = _open_store(args)
+    try:
+        if store is None:
+            shapes = []
+            for path in args.files:   # meshes or point clouds (their images are then points)
+                shape = _load(path, args)
+                work = min(args.resolution, shape.n_vertices)
+                if args.samples > work:
+                    raise _UserError(f"--samples {args.samples} is more than the {work} vertices of the "
+                                     f"working set of {path}")
+                _check_pieces(args, path, shape)   # simplification keeps the components
+                shapes.append(shape)
+            _check_neighbors(args, shapes)
+            _check_memory([min(args.resolution, s.n_vertices) for s in shapes],
+                          f"--resolution {args.resolution}")
+            options = _metric_options(args)
+            t = time.perf_counter()
+        else:   # read from the store; loaded and computed only when not stored yet
+            options = _metric_options(args)
+            shapes = _stored_shapes(store, args, options, progress=not (args.quiet or args.json))
+        r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                      metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
+                      progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
+                      rank_residual=args.rank_residual, store=store)
+    finally:
+        _close_store(store, handler)
     seconds = time.perf_counter() - t
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
@@ -494,6 +675,8 @@ def cmd_pairwise(args) -> int:
               "relative_trimmed_distance": r.trimmed.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
               "seconds": seconds}
+    if store is not None:
+        result["store"] = {"path": args.store, "shapes_read": store.reused, "pairs_read": store.pairs_reused}
     if labels is not None:
         lab = np.array(labels)
         result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
@@ -533,10 +716,13 @@ def cmd_pairwise(args) -> int:
                  args.mds, names=_short_names(names),
                  title=f"MDS of {n} shapes, {args.metric}, {what}")
     if args.json:
-        print(json.dumps(result))
+        print(_dumps(result))
         return 0
     print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric, {args.samples} samples per "
           f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
+    if store is not None:
+        print(f"  store {args.store}: {store.reused} of {n} shapes and {store.pairs_reused} of "
+              f"{n * (n - 1) // 2} pairs read from it")
     width = max(len(f) for f in names)
     for i, f in enumerate(names):
         j = nearest[i]
@@ -634,15 +820,29 @@ def _json_value(o):
 def cmd_perturb(args) -> int:
     from .io import save
     from .mesh import Mesh
-    from .perturb import holes, weld
+    from .perturb import WELD_RESOLUTION, holes, weld
 
-    shape = _load(args.input)
+    shape = _load(args.input, args)
     if not isinstance(shape, Mesh):
         raise _UserError(f"{args.input}: perturbations need a triangle mesh, got a point cloud")
     fn = weld if args.kind == "weld" else holes
-    if args.join is not None and args.kind != "weld":
-        raise _UserError("--join applies to weld, not to holes")
-    extra = {} if args.join is None else {"join": args.join}
+    weld_only = {"--join": args.join, "--min-geodesic-ratio": args.min_geodesic_ratio,
+                 "--separation": args.separation, "--resolution": args.resolution}
+    if args.kind != "weld":
+        given = [k for k, v in weld_only.items() if v is not None]
+        if given:
+            raise _UserError(f"{', '.join(given)} applies to weld, not to holes")
+        extra = {}
+    else:
+        extra = {k: v for k, v in (("join", args.join), ("min_geodesic_ratio", args.min_geodesic_ratio),
+                                   ("separation", args.separation)) if v is not None}
+        if args.resolution is not None:
+            extra["resolution"] = None if args.resolution == 0 else args.resolution
+    if not args.quiet:
+        where = extra.get("resolution", WELD_RESOLUTION) if args.kind == "weld" else None
+        copy = (f" (sites searched on a {where}-vertex copy)" if where is not None
+                and shape.n_vertices > where else "")
+        print(f"gromov: {args.kind} x{args.count} on {shape.n_vertices} vertices{copy}", file=sys.stderr)
     p = fn(shape, args.count, radius=args.radius, seed=args.seed, **extra)
     out = Path(args.output)
     if out.parent and not out.parent.exists():
@@ -707,8 +907,12 @@ def cmd_reproduce(args) -> int:
     from .experiments.datasets import data_root
     from .experiments.recognition import LOCAL_SCALING_K
     from .experiments.report import PAPER, PAPER_CLASSES, other_classes
-    from .experiments.reproduce import METRICS, RESULT_KEYS, reproduce
+    from .experiments.reproduce import METRICS, RESULT_KEYS, check_dependencies, reproduce
 
+    try:
+        check_dependencies()
+    except ImportError as exc:
+        raise _UserError(str(exc)) from None
     data = None
     if args.data is not None:
         data = data_root(args.data or None)   # "--data" alone: $GROMOV_DATA or ../shared/data
@@ -777,6 +981,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("mesh", help="OFF, OBJ, PLY, STL, MAT, TOSCA .vert/.tri, XYZ point clouds (optionally "
                                 ".gz); VTK, VTU, Gmsh, Medit with gromov[formats]")
     q.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_input_args(q)
     q.set_defaults(func=cmd_info)
 
     q = sub.add_parser("distances", help="distance matrix between farthest point samples")
@@ -790,6 +995,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
     q.add_argument("--out", required=True, help="output .npz with 'distances' (K,K) and 'samples' (K,)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    _add_input_args(q)
     q.set_defaults(func=cmd_distances)
 
     q = sub.add_parser("match", help="Gromov-Hausdorff distance and correspondence of two shapes")
@@ -832,7 +1038,26 @@ def build_parser() -> argparse.ArgumentParser:
                         "and zoom: X's colours carried to Y by the dense map, and the sample "
                         "correspondences (implies --dense; needs plotly)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_input_args(q)
     q.set_defaults(func=cmd_match)
+
+    q = sub.add_parser("index", help="compute each shape's working mesh and metric once and keep "
+                                     "them in a shape store, for pairwise --store")
+    q.add_argument("files", nargs="+", metavar="FILE", help="meshes or point clouds")
+    q.add_argument("--store", required=True, metavar="DIR",
+                   help="the store's folder (created if missing): catalogue.sqlite and one .npz "
+                        "per shape and set of options")
+    _add_metric_args(q)
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
+    from .gh import RANK_TAU_SCALE
+
+    q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
+                   help=f"heat-kernel diffusion: also keep the heat distance at S times the diffusion "
+                        f"time that pairwise ranks by (default {RANK_TAU_SCALE:g}, as pairwise)")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    _add_input_args(q)
+    q.set_defaults(func=cmd_index)
 
     q = sub.add_parser("pairwise", help="Gromov-Hausdorff distances between all pairs of a set of "
                                         "shapes; nearest neighbours, EER and an MDS map")
@@ -858,7 +1083,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "(named in its first cell)")
     q.add_argument("--mds", default=None, metavar="FILE.png", help="draw a 2-D MDS map of the shapes")
     q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.add_argument("--store", default=None, metavar="DIR",
+                   help="shape store (gromov index): read each shape's metric from it or add it, "
+                        "and record each pair as it finishes; a run stopped at any point continues "
+                        "where it stopped")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_input_args(q)
     q.set_defaults(func=cmd_pairwise)
 
     q = sub.add_parser("perturb", help="topological noise: weld close parts, or punch holes")
@@ -870,8 +1100,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="weld: search radius for close pairs; holes: geodesic radius (defaults in the docs)")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--join", choices=WELD_JOINS, default=None,
-                   help="weld: join the two places by a short handle (tube, default) or merge "
-                        "their vertices (pinch)")
+                   help="weld: join the two places by a short handle (tube, default: the mesh "
+                        "stays manifold, like SHREC'16 TOPKIDS' merged contacts) or merge their "
+                        "vertices (pinch: the paper's welded vertices, what `gromov reproduce` "
+                        "uses; a non-manifold vertex that some tools reject)")
+    q.add_argument("--min-geodesic-ratio", type=float, default=None, metavar="R",
+                   help="weld: the path along the surface must be R times the gap (default 4)")
+    q.add_argument("--separation", type=float, default=None,
+                   help="weld: least distance along the surface between two welds "
+                        "(default: half the radius)")
+    q.add_argument("--resolution", type=_nonnegative_int, default=None, metavar="N",
+                   help="weld: search the sites on a copy simplified to N vertices (default "
+                        "3000; 0: on the mesh itself) and glue them on the mesh")
+    q.add_argument("-q", "--quiet", action="store_true", help="no status line")
+    _add_input_args(q)
     q.set_defaults(func=cmd_perturb)
 
     q = sub.add_parser("reproduce", help="the paper's experiments, results.json and an HTML report")
@@ -914,6 +1156,28 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _announce_compilation():
+    """Say once on stderr when numba starts compiling a kernel: the first run after an
+    install compiles for tens of seconds, later runs load the compiled code from the cache.
+    Returns the listener, for ``numba.core.event.unregister("numba:compile", ...)``."""
+    from numba.core import event
+
+    class _Note(event.Listener):
+        said = False
+
+        def on_start(self, ev):
+            if not self.said:
+                self.said = True
+                print("gromov: compiling kernels, first run only", file=sys.stderr, flush=True)
+
+        def on_end(self, ev):
+            pass
+
+    note = _Note()
+    event.register("numba:compile", note)
+    return note
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -921,6 +1185,9 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     warnings.simplefilter("default")
     warnings.formatwarning = lambda msg, cat, *a, **k: f"gromov: warning: {msg}\n"
+    note = None
+    if args.func is not cmd_demo and not getattr(args, "quiet", False) and sys.stderr.isatty():
+        note = _announce_compilation()   # on a terminal, like the progress bars
     try:
         return args.func(args)
     except (GromovError, _UserError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
@@ -932,3 +1199,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # pragma: no cover
         print("gromov: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if note is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", note)

@@ -9,47 +9,39 @@ correspondence off it, so both are judged by the same distortion.
 
 from __future__ import annotations
 
+import inspect
 import logging
 import numbers
 import os
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import _gmds_kernel as _kernel
 from ._project import project_among
 from .errors import GromovWarning, MetricError
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
                    norm_value, parse_norm, trimmed_rms)
-from .mesh import Mesh, as_mesh, as_shape
+from .mesh import Mesh, as_shape
 from .metrics import metric_solver
 from .metrics.diffusion import correspondence_options
-from .orientation import orientation_agreements, outward_normals
+from .orientation import outward_normals
 from .resolution import WorkingCloud, WorkingMesh, gather, ring_candidates, working_shape
 from .sampling import farthest_point_sampling
+# the initial search (its names stay importable from here)
+from .search import (DEFAULT_COARSE_STAGES, DEFAULT_N_EXTEND, DEFAULT_N_STARTS,  # noqa: F401
+                     DEFAULT_SEARCH_VERTICES, EXTEND_KEEP, EXTEND_ROUNDS, INVOLUTION_REPAIRS, INVOLUTION_TOL,
+                     SIGNATURE_STARTS, SIGNATURE_WEIGHT, SYMMETRY_TOL, SearchOptions, _at_vertices,
+                     _candidates, _on_subset, _orient, _Search, _self_reflection, _Starts, _trimmed_descent,
+                     anchored_images, greedy_init, initial_pairs, pair_orientation, pairs_orientation,
+                     search_subsets, signature_mismatch)
 
-__all__ = ["ShapeMetric", "MatchResult", "match"]
+__all__ = ["ShapeMetric", "MatchResult", "match", "SearchOptions"]
 
 logger = logging.getLogger(__name__)
 
 DEFAULT_RESOLUTION = 3000
-#: Initial search of :func:`match`: first-sample candidates, and coarse starts extended to all
-#: samples per direction (chosen on held-out TOSCA classes: docs/design/initial-search.md).
-DEFAULT_N_STARTS = 128
-DEFAULT_N_EXTEND = 8
-#: Coarse stages of the initial search: (samples placed, farthest point samples of the target
-#: it runs on, None for all working vertices); see ``match``.
-DEFAULT_COARSE_STAGES: tuple[tuple[int, int | None], ...] = ((12, None), (20, 1000))
-#: Fraction of the samples a coarse start's extension descends on after its first descent
-#: (sample-level least trimmed squares; 1, the default, disables it), and how many rounds:
-#: see ``match``'s ``extend_keep``.
-EXTEND_KEEP = 1.0
-EXTEND_ROUNDS = 3
-#: Farthest point samples of the target to which the initial search is restricted (None: all
-#: working vertices); the best start is then polished on all of them (see ``match``).
-DEFAULT_SEARCH_VERTICES: int | None = None
 #: ``match(..., orientation="prefer")`` keeps an orientation-preserving correspondence when its
 #: distortion is at most this much (relative) above the best one found.
 ORIENTATION_TOL = 0.1
@@ -62,30 +54,18 @@ DIRECT_MARGIN = 0.15
 #: ... and a map obtained by composing the mirrored one with a reflection of either shape
 #: (:meth:`ShapeMetric.symmetry`) when within this much; chosen on the held-out classes.
 FLIP_TOL = 0.25
-#: :meth:`ShapeMetric.symmetry` accepts a self-map whose RMS distortion is below this fraction of
-#: the diameter.
-SYMMETRY_TOL = 0.05
-#: ... and repairs it up to this many times where its two halves disagree by more than
-#: ``INVOLUTION_TOL`` of the diameter at a sample (a reflection is its own inverse).
-INVOLUTION_REPAIRS = 2
-INVOLUTION_TOL = 0.05
-#: Signature-guided coarse stages (see ``match``'s ``signature_weight``): the weight of the
-#: per-image cost, and how many of the candidates (the best-matching signatures first) they
-#: start from.
-SIGNATURE_WEIGHT = 1.0
-SIGNATURE_STARTS = 32
 #: Recognition (:func:`gromov.experiments.gh_matrix`) ranks a pair of shapes by the trimmed
 #: distortion of the correspondence found with the heat-kernel diffusion metric at time
 #: ``tau``, *measured* with the heat distance at ``RANK_TAU_SCALE * tau`` (a finer scale) on
 #: the same eigenpairs (:meth:`HeatDiffusionSolver.at_tau
-#: <gromov.metrics.diffusion.HeatDiffusionSolver.at_tau>`); see ``match``'s
-#: ``rank_tau_scale``. Chosen on the validation sets: the margin of the diffusion ranking rises
+#: <gromov.metrics.diffusion.HeatDiffusionSolver.at_tau>`); see
+#: :func:`gromov.experiments.gh_matrix`'s ``rank_tau_scale``. Chosen on the validation sets: the margin of the diffusion ranking rises
 #: in six readings of seven, e.g. synthetic welds 0.988 -> 1.427 (``.venv/bin/python
 #: benchmarks/bench_rank_residual.py``, "difference @1" against "@0.5"; see
 #: docs/design/recognition.md).
 RANK_TAU_SCALE = 0.5
-#: How recognition summarises the residuals of a correspondence (see ``match``'s
-#: ``rank_residual``): ``"log"``, the trimmed RMS of the log ratios of corresponding distances
+#: How recognition summarises the residuals of a correspondence (see
+#: :func:`gromov.experiments.gh_matrix`'s ``rank_residual``): ``"log"``, the trimmed RMS of the log ratios of corresponding distances
 #: (:func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), or
 #: ``"difference"``, that of their differences over the larger diameter (the additive form).
 #: Chosen on the validation sets: the diffusion margin is larger in seven readings of eight and
@@ -112,7 +92,13 @@ class ShapeMetric:
         Working mesh size (None: the input mesh as it is). A point cloud's working set is that
         many of its points (:func:`gromov.resolution.working_cloud`: farthest points in space).
     metric_options : dict, optional
-        Passed to :func:`gromov.metrics.metric_solver`.
+        Passed to :func:`gromov.metrics.metric_solver` as they are: without ``units`` or
+        ``tau``, the heat kernel measures in raw units (recognition's,
+        :func:`gromov.experiments.gh_matrix`). :func:`match` measures a correspondence in
+        :func:`~gromov.metrics.diffusion.correspondence_options` of them (normalised units
+        unless named), as it would the file: where those differ, it matches this shape's
+        :meth:`for_correspondence`, so that ``match(ShapeMetric(f), g)`` and ``match(f, g)``
+        give the same result.
     working : WorkingMesh or WorkingCloud, optional
         Use this working mesh (e.g. ``reference.working.transfer(pose)`` to simplify the poses
         of a class identically) instead of simplifying ``shape``; for a point cloud, a
@@ -152,6 +138,7 @@ class ShapeMetric:
         self._normals: tuple[np.ndarray, bool] | None = None
         self._symmetry: dict = {}
         self._ranking: dict = {}
+        self._correspondence: ShapeMetric | None = None
 
     @property
     def mesh(self) -> Mesh:
@@ -249,8 +236,8 @@ class ShapeMetric:
     def ranking_surface(self, tau_scale: float):
         """``(EmbeddedDistance, diameter)`` of the heat distance at ``tau_scale`` times this
         shape's diffusion time, from the same eigenpairs (cached per scale), or None when the
-        metric is not the heat-kernel diffusion distance. What ``match(..., rank_tau_scale=)``
-        measures a correspondence with."""
+        metric is not the heat-kernel diffusion distance. What recognition measures a
+        correspondence with (:func:`gromov.experiments.gh_matrix`'s ``rank_tau_scale``)."""
         inner = getattr(self.solver, "inner", self.solver)   # through a hole-filling wrapper
         if not hasattr(inner, "at_tau"):
             return None
@@ -267,6 +254,19 @@ class ShapeMetric:
             self._ranking[key] = (EmbeddedDistance(self.mesh, psi), float(np.sqrt(max(top, 0.0))))
         return self._ranking[key]
 
+    def for_correspondence(self) -> ShapeMetric:
+        """This shape in the metric :func:`match` measures a correspondence in: itself when its
+        options are already :func:`~gromov.metrics.diffusion.correspondence_options` of
+        themselves, else a ShapeMetric of the same input and working mesh with those options
+        (made once). Matching a file prepares it the same way, so both give the same result."""
+        options = correspondence_options(self.metric, self.metric_options)
+        if options == self.metric_options:
+            return self
+        if self._correspondence is None:
+            self._correspondence = ShapeMetric(self.input, self.metric, metric_options=options,
+                                               working=self.working)
+        return self._correspondence
+
     def samples(self, n: int, seed: int = 0) -> np.ndarray:
         """``n`` farthest point samples (working vertex ids), cached per ``(n, seed)``."""
         key = (int(n), int(seed))
@@ -276,7 +276,8 @@ class ShapeMetric:
 
     def subset(self, k: int) -> np.ndarray:
         """``k`` farthest point samples (seed 0; all vertices if fewer): the vertex subset an
-        initial search of :func:`match` runs on (``coarse_stages``, ``search_vertices``)."""
+        initial search of :func:`match` runs on (:class:`SearchOptions`' ``coarse_stages``,
+        ``search_vertices``)."""
         return self.samples(min(int(k), self.mesh.n_vertices), 0)
 
     @property
@@ -362,10 +363,11 @@ class MatchResult:
         Half of it divided by the larger diameter, comparable to ``relative_distance``.
     ranking_distance : float
         What recognition ranks pairs of shapes by (``PairwiseGH.trimmed``, ``gromov
-        reproduce``): ``relative_trimmed``, or with ``rank_tau_scale`` and the heat-kernel
+        reproduce``): from :func:`match`, ``relative_trimmed``; from
+        :func:`gromov.experiments.gh_matrix`, with its ``rank_tau_scale`` and the heat-kernel
         diffusion metric, the same quantity for the same correspondence measured with the heat
         distance at ``rank_tau_scale`` times the diffusion time (diameters in that metric);
-        with ``rank_residual="log"``, of the log ratios of the distances instead of their
+        with its ``rank_residual="log"``, of the log ratios of the distances instead of their
         differences (:func:`ranking_value`).
     pair_distortion : ndarray (M+K, M+K)
         ``D_X(C) - D_Y(C)`` of the final two-sided correspondence C = (P x Q') u (P' x Q): rows
@@ -504,245 +506,343 @@ class MatchResult:
         return out
 
 
-# ----------------------------------------------------------------------------- initialisation
-def greedy_init(dx_pp: np.ndarray, DY: np.ndarray, candidates: np.ndarray, *,
-                stages=((12, None),), n_extend: int = DEFAULT_N_EXTEND,
-                domain: np.ndarray | None = None, all_starts: bool = False,
-                extend_keep: float = EXTEND_KEEP):
-    """Multi-resolution, multi-start initial images (vertex ids on Y) of samples of X.
+# ----------------------------------------------------------------------------- match
+@dataclass
+class _Fit:
+    """A two-sided correspondence during :func:`match`: the images of P on Y and of Q on X
+    (surface points, or vertex ids where a point cloud keeps the maps discrete), with the
+    GMDS run that gave it."""
 
-    Coarse stage: for every candidate image of the first sample, place the first ``c``
-    samples greedily, polish them by discrete descent (each image moves to the best vertex of
-    Y) and score their distortion. Each of ``stages``, ``(c, vertices)``, is one such coarse
-    stage, over the given vertices of Y (an array, e.g. farthest point samples; the
-    candidates are added to it) or over all of them (None). The ``n_extend`` extended starts
-    are shared out evenly among the stages, each stage's best first: they are extended to all
-    samples (greedy placement, then discrete descent over all vertices of Y) and the one with
-    the lowest distortion is returned. ``DY`` must be symmetric.
+    img_p: SurfacePoints | np.ndarray
+    img_q: SurfacePoints | np.ndarray
+    n_iter: int = 0
+    converged: bool = True
+    history: list = field(default_factory=list)
+    orientation: float = float("nan")
 
-    ``domain``: vertices of Y to which the whole search is restricted (the stages' own
-    vertex sets are then ignored); the candidates are added to it. The best start found there
-    is then polished by discrete descent over all vertices of Y. The search's cost is
-    proportional to the domain's size.
 
-    Returns the images ``(m,)`` of the best start, or with ``all_starts`` a list of
-    ``(images, summed squared distortion)`` of every extended start, in the order they were
-    extended (without ``domain`` the best is the first of the lowest cost; with it, each
-    start is polished on all vertices, and the best is the one chosen on the domain): for
-    studies of the selection. ``extend_keep``: see :func:`match`.
+def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", solver: str = "gmds",
+          init: str = "greedy", seed: int = 0, resolution: int | None = DEFAULT_RESOLUTION,
+          metric_options: dict | None = None, radius: float | None = None, orientation: str = "prefer",
+          search: SearchOptions | None = None, dense: bool | str = False, **deprecated) -> MatchResult:
+    r"""Gromov-Hausdorff distance and correspondence between two shapes.
+
+    Minimises the distortion of a two-sided correspondence C between farthest point samples,
+    :math:`\hat d_{GH}(X, Y) = \tfrac12 \min_C \mathrm{dis}_p(C)`, by symmetric GMDS from a
+    multi-start initial search (Bronstein et al., IJCV 2010, §2 and §4): the metrics, the
+    samples, the search (:mod:`gromov.search`), GMDS, the distortion, the images.
+
+    Parameters
+    ----------
+    X : Mesh, PointCloud, path, (vertices, faces), (n, 3) array, trimesh.Trimesh or ShapeMetric
+        The first shape. A :class:`ShapeMetric` reuses its working mesh and, when its options
+        are the correspondence's, its metric (see ``metric_options``). With a point cloud on
+        either side the map is the search's discrete one: images at points.
+    Y : same as X
+        The second shape.
+    metric : {"diffusion", "geodesic", "euclidean"}, default "diffusion"
+    n_samples : int, default 100
+        Farthest point samples per shape.
+    norm : {"l2", "linf"} or "p:VALUE", default "l2"
+        Norm of the distortion that is minimised and reported as ``distance``.
+    solver : {"gmds", "gw"}, default "gmds"
+        Symmetric GMDS, or the Gromov-Wasserstein coupling (POT) read off as a map.
+    init : {"greedy", "gw"}, default "greedy"
+        GMDS's start: the initial search, or the argmax of the Gromov-Wasserstein coupling.
+    seed : int, default 0
+        Seeds the farthest point sampling; the rest is deterministic.
+    resolution : int or None, default 3000
+        Working mesh size for shapes not prepared already (None: the input as it is).
+    metric_options : dict, optional
+        Passed through :func:`~gromov.metrics.diffusion.correspondence_options`, as is every
+        ShapeMetric's own (so a prepared shape and its file give the same match). Default:
+        those of a prepared shape, else the correspondence's (normalised heat units).
+    radius : float, optional
+        Partial matching: only pairs of samples closer than ``radius`` count.
+    orientation : {"prefer", "ignore"}, default "prefer"
+        "prefer": a mirrored map is replaced by an orientation-preserving one within
+        ``ORIENTATION_TOL`` (10%) of its distortion, or by its composition with a reflection
+        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`).
+    search : SearchOptions, optional
+        The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
+    dense : bool, "zoomout" or "placed", default False
+        Also map every input vertex (:mod:`gromov.dense`), refined by ZoomOut unless "placed".
+
+    Returns
+    -------
+    MatchResult
+
+    Examples
+    --------
+    >>> r = match("cat0.off.gz", "cat1.off.gz")                 # doctest: +SKIP
+    >>> r.relative_distance, r.x_to_y_vertex[:3]                # doctest: +SKIP
     """
-    search = _Search(dx_pp, DY, candidates, stages, n_extend, domain, extend_keep)
-    every, best = search.extend_plain(polish_all=all_starts)
-    return every if all_starts else every[best][0]
+    options = _upgrade_options({**deprecated, "search": search}, "match")
+    return _match(X, Y, metric, n_samples=n_samples, norm=norm, solver=solver, init=init, seed=seed,
+                  resolution=resolution, metric_options=metric_options, radius=radius,
+                  orientation=orientation, dense=dense, **options)
 
 
-def _trimmed_descent(dx, DY, img, keep: float, rounds: int, R, C):
-    r"""Sample-level least trimmed squares on discrete images: ``(images, summed squared
-    distortion)``.
+#: Keywords of :func:`match` that moved into :class:`SearchOptions`.
+_MOVED_TO_SEARCH = ("n_starts", "n_extend", "coarse_stages", "search_vertices", "extend_keep",
+                    "signature_weight", "max_iter", "tol")
+#: Keywords of :func:`match` that belong to recognition's ranking
+#: (:func:`gromov.experiments.gh_matrix`).
+_MOVED_TO_RANKING = ("rank_tau_scale", "rank_residual")
 
-    Each round ranks the samples by their own squared residual
-    :math:`\sum_j (d_X(p_i, p_j) - d_Y(q_i, q_j))^2`, descends (discrete Gauss-Seidel over
-    all vertices of Y) on the best-fitting ``ceil(keep m)`` samples alone, then places the
-    others greedily given them; it stops after ``rounds`` rounds or when nothing moves. A
-    change of topology moves whole rows of the distances (a weld changes a nearby point's
-    diffusion distance to every point: docs/design/perturbations.md), so the samples near it
-    are set aside instead of pulling the others' images.
+
+def _upgrade_options(options: dict, caller: str = "match", stacklevel: int = 3) -> dict:
+    """``options`` of :func:`match` with the keywords that moved, for one release: those of
+    the search into ``search`` (a :class:`SearchOptions`), each with a ``DeprecationWarning``
+    that names the replacement; ``search=None`` is dropped. ``TypeError`` for any other
+    unknown keyword."""
+    options = dict(options)
+    if options.get("search") is None:
+        options.pop("search", None)
+    elif not isinstance(options["search"], SearchOptions):
+        raise TypeError(f"search must be a gromov.SearchOptions, got {type(options['search']).__name__}")
+    moved = {k: options.pop(k) for k in _MOVED_TO_SEARCH if k in options}
+    if moved:
+        names = ", ".join(f"{k}=..." for k in moved)
+        warnings.warn(f"{caller}({names}) is deprecated: use {caller}(search=gromov.SearchOptions({names}))",
+                      DeprecationWarning, stacklevel=stacklevel)
+        options["search"] = replace(options.get("search", SearchOptions()), **moved)
+    ranked = [k for k in _MOVED_TO_RANKING if k in options]
+    if ranked:
+        names = ", ".join(f"{k}=..." for k in ranked)
+        warnings.warn(f"{caller}({names}) is deprecated: recognition's ranking is set on "
+                      f"gromov.experiments.gh_matrix({names})", DeprecationWarning, stacklevel=stacklevel)
+    known = set(inspect.signature(_match).parameters) - {"X", "Y", "metric", "as_prepared"}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise TypeError(f"{caller}() got an unexpected keyword argument {unknown[0]!r}")
+    return options
+
+
+def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", solver: str = "gmds",
+           init: str = "greedy", seed: int = 0, resolution: int | None = DEFAULT_RESOLUTION,
+           metric_options: dict | None = None, radius: float | None = None, orientation: str = "prefer",
+           search: SearchOptions = SearchOptions(), dense: bool | str = False,
+           rank_tau_scale: float | None = None, rank_residual: str = "difference",
+           as_prepared: bool = False) -> MatchResult:
+    """:func:`match`, and what recognition ranks by (:func:`gromov.experiments.gh_matrix`):
+    ``ranking_distance`` measured with the heat distance at ``rank_tau_scale`` times the
+    diffusion time, of ``rank_residual`` (:func:`ranking_value`). ``as_prepared``: use prepared
+    shapes in their own metric (recognition's units) instead of the correspondence's."""
+    t0 = time.perf_counter()
+    p = parse_norm(norm)
+    _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residual)
+    # the metrics, and farthest point samples of each shape
+    sx, sy = _prepared_pair(X, Y, metric, resolution, metric_options, as_prepared)
+    discrete = _check_pair(sx, sy, n_samples, radius)
+    P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
+    gm = None if discrete else SymmetricGMDS(sx.surface, sy.surface, P, Q, p=p, max_iter=search.max_iter,
+                                             tol=search.tol, radius=radius)
+    prefer = _prefers_direct(sx, sy, orientation, solver, init, discrete)
+    # the initial search, then GMDS, mirror images replaced by direct maps where nearly as good
+    starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
+    fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
+    if prefer and not fit.orientation > 0.5:
+        fit = _prefer_direct(sx, sy, P, Q, gm, starts, fit, n_samples, seed)
+    # the distortion of the final correspondence, and its images on the input meshes
+    dx, dy = discrete_blocks(sx.distances, sy.distances, P, Q, fit.img_p, fit.img_q) if discrete else \
+        gm.blocks(fit.img_p, fit.img_q)
+    residual = dx - dy
+    np.fill_diagonal(residual, 0.0)   # not a pair (an interpolated self-distance need not be 0)
+    r = residual[~np.eye(len(dx), dtype=bool)]
+    dis, diam, d_trim = norm_value(r, p), max(sx.diameter, sy.diameter), trimmed_rms(r)
+    ranking = _ranking(sx, sy, P, Q, fit, dx, dy, diam, discrete, rank_tau_scale, rank_residual)
+    locate = _images_at_points if discrete else lambda s, img: s.locate(img)
+    xy_face, xy_bary, xy_vertex = locate(sy, fit.img_p)
+    yx_face, yx_bary, yx_vertex = locate(sx, fit.img_q)
+    extra = _dense_fields(sx, sy, P, Q, fit, dense) if dense else {}
+    norm_name = "l2" if p == 2 else ("linf" if np.isinf(p) else f"p:{p:g}")
+    return MatchResult(
+        distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
+        distortion_l2=norm_value(r, 2.0), distortion_linf=norm_value(r, np.inf), norm=norm_name,
+        metric=metric, solver=solver, n_samples=int(n_samples),
+        x_samples=sx.working.to_input_ids(P), x_to_y_face=xy_face, x_to_y_bary=xy_bary, x_to_y_vertex=xy_vertex,
+        y_samples=sy.working.to_input_ids(Q), y_to_x_face=yx_face, y_to_x_bary=yx_bary, y_to_x_vertex=yx_vertex,
+        n_iter=int(fit.n_iter), converged=bool(fit.converged), seconds=time.perf_counter() - t0,
+        orientation=fit.orientation, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
+        ranking_distance=ranking, pair_distortion=residual, history=np.asarray(fit.history), **extra)
+
+
+def _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residual) -> None:
+    """``ValueError`` for an option of :func:`match` that names no method."""
+    if solver not in ("gmds", "gw"):
+        raise ValueError(f"solver must be 'gmds' or 'gw', got {solver!r}")
+    if init not in ("greedy", "gw"):
+        raise ValueError(f"init must be 'greedy' or 'gw', got {init!r}")
+    if orientation not in ("ignore", "prefer"):
+        raise ValueError(f"orientation must be 'ignore' or 'prefer', got {orientation!r}")
+    if dense and dense not in (True, "zoomout", "placed"):
+        raise ValueError(f"dense must be True, False, 'zoomout' or 'placed', got {dense!r}")
+    check_rank_tau_scale(rank_tau_scale)
+    check_rank_residual(rank_residual)
+
+
+def _prepared_pair(X, Y, metric, resolution, metric_options, as_prepared) -> tuple[ShapeMetric, ShapeMetric]:
+    """The two shapes with their metrics (:func:`match_options_for`), and a warning where the
+    two measure distances differently."""
+    metric_options = match_options_for((X, Y), metric, metric_options)
+    sx = _as_shape(X, metric, resolution, metric_options, "X", as_prepared)
+    sy = _as_shape(Y, metric, resolution, metric_options, "Y", as_prepared)
+    if sx.has_faces != sy.has_faces and metric != "euclidean":   # (straight lines: the same either way)
+        warnings.warn(f"{'Y' if sx.has_faces else 'X'} is a point cloud and the other a mesh: their "
+                      f"{metric} distances are computed differently (a mesh's own construction, a "
+                      "cloud's from its nearest neighbours), so the distortion compares two metrics; "
+                      "for comparable distances match the mesh's vertices as a point cloud too",
+                      GromovWarning, stacklevel=4)
+    elif _metric_signature(sx) != _metric_signature(sy):
+        warnings.warn(f"X and Y measure distances differently ({_metric_signature(sx)} vs "
+                      f"{_metric_signature(sy)}): their distortion compares two different metrics; "
+                      f"prepare both ShapeMetrics with the same metric_options", GromovWarning, stacklevel=4)
+    return sx, sy
+
+
+def _check_pair(sx: ShapeMetric, sy: ShapeMetric, n_samples: int, radius) -> bool:
+    """Whether the maps stay discrete (a point cloud on either side: images at points), after
+    the checks that the pair can be matched with these options."""
+    for name, s in (("X", sx), ("Y", sy)):
+        if n_samples > s.mesh.n_vertices:
+            raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")
+    if n_samples < 3:
+        raise ValueError(f"n_samples must be at least 3, got {n_samples}")
+    discrete = not (sx.has_faces and sy.has_faces)
+    if discrete and radius is not None:
+        raise ValueError("radius (partial matching) weighs the GMDS refinement on the surfaces, which "
+                         "needs triangle meshes; X or Y is a point cloud")
+    for name, s in (("X", sx), ("Y", sy)):
+        if discrete and not s.finite:   # (on meshes SurfaceDistance says so)
+            raise MetricError(f"{name}: matching needs finite distances, got inf or NaN (a shape in "
+                              f"pieces: a point cloud whose {s.metric} neighbour graph falls apart -- "
+                              "more neighbours (--neighbors K, metric_options={'k': ...}), or --metric "
+                              "diffusion, which measures across the pieces; a mesh in several "
+                              "components: keep its largest, Mesh.largest_component())")
+    return discrete
+
+
+def _prefers_direct(sx, sy, orientation, solver, init, discrete) -> bool:
+    """Whether ``orientation="prefer"`` applies: GMDS from the initial search on two orientable
+    meshes (a warning where a working mesh is not orientable)."""
+    prefer = orientation == "prefer" and solver == "gmds" and init == "greedy" and not discrete
+    if prefer and not (sx.normals[1] and sy.normals[1]):
+        warnings.warn("orientation='prefer' needs orientable working meshes (a Moebius-like "
+                      "piece cannot be given an outward side); ignored", GromovWarning, stacklevel=4)
+        return False
+    return prefer
+
+
+def _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete):
+    """``(search or None, images of P on Y, images of Q on X)``: GMDS's start, vertex ids.
+
+    The initial search (:class:`gromov.search._Starts`): each direction on its own, then the
+    other direction anchored on it; the consistent pair of lower two-sided L2 distortion is
+    kept. With ``init="gw"`` or ``solver="gw"``: the argmax of the Gromov-Wasserstein coupling.
     """
-    m = len(dx)
-    h = max(2, int(np.ceil(keep * m - 1e-9)))
-    img = np.asarray(img, dtype=np.int64).copy()
-    for _ in range(rounds):
-        e = dx - DY[np.ix_(img, img)]
-        np.fill_diagonal(e, 0.0)
-        order = np.argsort((e**2).sum(axis=1), kind="stable")
-        t, u = np.sort(order[:h]), np.sort(order[h:])
-        new_t, _ = _kernel.place_and_descend_blas(np.ascontiguousarray(dx[np.ix_(t, t)]), DY, img[t],
-                                                  20, R[:h], C[:h])
-        perm = np.concatenate([t, u])
-        placed, _ = _kernel.place_and_descend_blas(np.ascontiguousarray(dx[np.ix_(perm, perm)]), DY,
-                                                   new_t, 0, R, C)
-        new = np.empty(m, np.int64)
-        new[perm] = placed
-        if np.array_equal(new, img):
-            break
-        img = new
-    return img, float(np.sum((dx - DY[np.ix_(img, img)]) ** 2))
+    DX, DY = sx.distances, sy.distances
+    if solver == "gw" or init == "gw":
+        T = gw_coupling(DX[np.ix_(P, P)], DY[np.ix_(Q, Q)])
+        return None, Q[np.argmax(T, axis=1)], P[np.argmax(T, axis=0)]
+
+    def score(a, b):   # the two-sided L2 distortion of a start (vertex images)
+        if discrete:
+            ex, ey = discrete_blocks(DX, DY, P, Q, a, b)
+            return norm_value((ex - ey)[~np.eye(len(ex), dtype=bool)], 2.0)
+        return gm.distortion(*_at_vertices(sx, sy, a, b), 2.0)
+
+    starts = _Starts(sx, sy, P, Q, search)
+    pairs = starts.plain(all_starts=False)
+    img_p0, img_q0 = pairs[int(np.argmin([score(a, b) for a, b in pairs]))]
+    return starts, img_p0, img_q0
 
 
-class _Search:
-    """One direction of :func:`greedy_init`'s search, kept so that more of its coarse starts
-    can be extended later (:meth:`extend_preserving`)."""
+def _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete) -> _Fit:
+    """GMDS from the start (``solver="gmds"``), and the orientation agreement of the result; a
+    discrete map (point clouds) as it is."""
+    if discrete:
+        return _Fit(img_p0, img_q0)
+    img_p, img_q = _at_vertices(sx, sy, img_p0, img_q0)
+    n_iter, converged = 0, True
+    if solver == "gmds":
+        img_p, img_q, n_iter, converged = gm.solve(img_p, img_q)
+    return _Fit(img_p, img_q, n_iter, converged, list(gm.history),
+                pair_orientation(sx, sy, P, Q, img_p, img_q))
 
-    def __init__(self, dx_pp, DY, candidates, stages, n_extend, domain, extend_keep=EXTEND_KEEP,
-                 signature_costs=None):
-        self.extend_keep = float(extend_keep)
-        self.dx_pp = np.ascontiguousarray(dx_pp, dtype=np.float64)
-        candidates = np.asarray(candidates, dtype=np.int64)
-        self.DY = DY
-        restricted = _on_subset(DY, domain, candidates)
-        if restricted is not None:  # the whole search on the domain, then polished on all of Y
-            self.dom, work, candidates = restricted
-            stages = [(c, None) for c, _ in stages]
+
+def _prefer_direct(sx, sy, P, Q, gm, starts, fit: _Fit, n_samples: int, seed: int) -> _Fit:
+    """``orientation="prefer"`` for a mirrored (or scrambled) ``fit``: GMDS from the best
+    orientation-preserving start too, among the extended starts and more preserving ones
+    (within ``ORIENTATION_TOL`` of its distortion), then from its compositions with a
+    reflection of X or Y (:meth:`ShapeMetric.symmetry`, within ``FLIP_TOL``). A clearly direct
+    map (agreement above 1/2 + ``DIRECT_MARGIN``) is taken at once; one direct only on part of
+    the shapes (agreement near 1/2) only if no clearly direct one turns up. ``fit`` if none."""
+    pairs = starts.plain(all_starts=True) + starts.preserving(-(-starts.fwd.per_stage // 2))
+    at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
+    keep = pairs_orientation(sx, sy, P, Q, at) > 0.5
+    d_first = gm.distortion(fit.img_p, fit.img_q, 2.0)
+
+    def attempt(start, tol_k):
+        h0 = len(gm.history)
+        alt = gm.solve(*start)
+        o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
+        if o_alt > 0.5 and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + tol_k) * d_first:
+            return _Fit(*alt, gm.history[h0:], o_alt)
+        return None
+
+    found = partial = None
+    if keep.any():  # the best orientation-preserving start
+        scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
+        alt = attempt(at[int(np.flatnonzero(keep)[np.argmin(scores[keep])])], ORIENTATION_TOL)
+        if alt is not None and alt.orientation > 0.5 + DIRECT_MARGIN:
+            found = alt
         else:
-            self.dom, work = None, np.ascontiguousarray(DY, dtype=np.float64)
-        self.work = work
-        self.coarse = []  # per stage: (cost, images as a tuple of ids of ``work``), sorted
-        runs = [(c, vertices, False) for c, vertices in stages]
-        if signature_costs is not None:  # each stage again, with the signatures' costs
-            if self.dom is not None:
-                signature_costs = signature_costs[:, self.dom]
-            runs += [(c, vertices, True) for c, vertices in stages]
-        for c, vertices, signed in runs:
-            c = min(int(c), len(self.dx_pp))
-            head = np.ascontiguousarray(self.dx_pp[:c, :c])
-            sub = _on_subset(work, vertices, candidates)
-            U, k = None, len(candidates)
-            if signed:  # as if each of a sample's c - 1 distances were off by its mismatch
-                U, k = (c - 1) * signature_costs[:c], min(k, SIGNATURE_STARTS)
-            if sub is not None:
-                dom, part, cand = sub
-                imgs, costs = _kernel.coarse_starts(head, part, cand[:k], 20, None if U is None else U[:, dom])
-                imgs = dom[imgs]
-            else:
-                imgs, costs = _kernel.coarse_starts(head, work, candidates[:k], 20, U)
-            self.coarse.append(sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist())))
-        self.per_stage = -(-int(n_extend) // len(self.coarse))  # evenly, rounded up
-        self.seen: set = set()
-        self._R = self._C = self._plain = self._full = None
-        self._polished: dict = {}
-
-    def _extend(self, coarse_imgs, polish: bool):
-        """Extend coarse starts to all samples on ``work`` (and polish them on all of Y)."""
-        n = len(self.dx_pp)
-        if self._R is None:
-            self._R, self._C = np.empty((n, len(self.work))), np.empty((n, len(self.work)))
-        out = [_kernel.place_and_descend_blas(self.dx_pp, self.work, np.asarray(img, dtype=np.int64),
-                                              20, self._R, self._C) for img in coarse_imgs]
-        if self.extend_keep < 1.0:
-            out = [_trimmed_descent(self.dx_pp, self.work, img, self.extend_keep, EXTEND_ROUNDS,
-                                    self._R, self._C) for img, _ in out]
-        if self.dom is not None and polish:
-            out = [self.polish(img) for img, _ in out]
-        return out
-
-    def polish(self, img):
-        """``(images on Y, cost)``: discrete descent over all of Y from images on ``work``
-        (each start once)."""
-        key = tuple(np.asarray(img).tolist())
-        if key not in self._polished:
-            if self._full is None:  # Y and the work arrays of its size, once
-                DY = np.ascontiguousarray(self.DY, dtype=np.float64)
-                n = len(self.dx_pp)
-                self._full = (DY, np.empty((n, len(DY))), np.empty((n, len(DY))))
-            DY, R, C = self._full
-            # all images given: no placement, discrete descent over every vertex of Y
-            self._polished[key] = _kernel.place_and_descend_blas(self.dx_pp, DY, self.dom[img], 20, R, C)
-        return self._polished[key]
-
-    def extend_plain(self, polish_all: bool = True):
-        """The ``n_extend`` lowest-cost coarse starts (shared out among the stages), extended:
-        ``(list of (images on Y, cost), index of the best)``. Without ``polish_all`` (and with a
-        domain) only the best is polished on all of Y and the others stay on the domain."""
-        if self._plain is None:  # once
-            todo = []
-            for scored in self.coarse:
-                taken = 0
-                for _, img in scored:
-                    if img in self.seen:
-                        continue
-                    self.seen.add(img)
-                    todo.append(img)
-                    taken += 1
-                    if taken >= self.per_stage:
-                        break
-            self._plain = self._extend(todo, polish=False)
-        every = self._plain
-        costs = [cost for _, cost in every]
-        best = int(np.argmin(costs))  # the first of the lowest cost
-        if self.dom is not None:
-            every = ([self.polish(img) for img, _ in every] if polish_all else
-                     [self.polish(img) if k == best else (self.dom[img], cost)
-                      for k, (img, cost) in enumerate(every)])
-        return every, best
-
-    def extend_preserving(self, orient, count: int, reversing: bool = False):
-        """Up to ``count`` more starts per stage: its lowest-cost coarse starts not extended
-        yet whose orientation agreement ``orient(images on Y) > 1/2`` (``< 1/2`` with
-        ``reversing``); extended and polished."""
-        todo = []
-        for scored in self.coarse:
-            rest = [img for _, img in scored if img not in self.seen]
-            if not rest:
+            partial = alt
+    if found is None:  # the mirrored map composed with a reflection of X, then of Y
+        DX, DY = sx.distances, sy.distances
+        fp, gq = fit.img_p.vertex(sy.mesh.faces), fit.img_q.vertex(sx.mesh.faces)
+        for s_ in (sx, sy):
+            sym = s_.symmetry(n_samples, seed)
+            if sym is None:
                 continue
-            ids = np.asarray(rest, dtype=np.int64)
-            agree = orient(ids if self.dom is None else self.dom[ids])
-            keep = agree < 0.5 if reversing else agree > 0.5
-            chosen = [img for img, k in zip(rest, keep) if k][:count]
-            self.seen.update(chosen)
-            todo += chosen
-        return self._extend(todo, polish=True)
+            if s_ is sx:  # f o S_X on P (f carried to S_X(P) by its distances), S_X o g on Q
+                start = (anchored_images(DY, fp, DX[np.ix_(sym[P], P)]), sym[gq])
+            else:         # S_Y o f on P, g o S_Y on Q
+                start = (sym[fp], anchored_images(DX, gq, DY[np.ix_(sym[Q], Q)]))
+            alt = attempt(_at_vertices(sx, sy, *start), FLIP_TOL)
+            if alt is not None and alt.orientation > 0.5 + DIRECT_MARGIN:
+                found = alt
+                break
+            if partial is None:
+                partial = alt
+    return found or partial or fit
 
 
-def signature_mismatch(sx: "ShapeMetric", sy: "ShapeMetric", A: np.ndarray) -> np.ndarray:
-    """``(len(A), n)``: squared mean absolute difference between the signatures
-    (:attr:`ShapeMetric.descriptors`) of the vertices ``A`` of ``sx`` and of each working vertex
-    of ``sy``, in squared distance units."""
-    sb = sy.descriptors
-    sa = sx.descriptors[np.asarray(A, dtype=np.int64)]
-    delta = np.empty((len(sa), len(sb)))
-    for k, row in enumerate(sa):  # one sample at a time: no (len(A), n, 16) temporary
-        delta[k] = np.abs(sb - row).mean(axis=1)
-    return delta * delta
+def _ranking(sx, sy, P, Q, fit: _Fit, dx, dy, diam, discrete, rank_tau_scale, rank_residual) -> float:
+    """``MatchResult.ranking_distance``: :func:`ranking_value` of the final correspondence, in
+    the heat distance at ``rank_tau_scale`` times the diffusion time where that applies (the
+    heat kernel), else in the match's metric (``dx``, ``dy``)."""
+    mx = my = None
+    if rank_tau_scale is not None:
+        mx, my = sx.ranking_surface(rank_tau_scale), sy.ranking_surface(rank_tau_scale)
+    if mx is None or my is None:
+        return ranking_value(dx, dy, diam, rank_residual)
+    if discrete:
+        ex, ey = mx[0].block(np.r_[P, fit.img_q]), my[0].block(np.r_[fit.img_p, Q])
+    else:
+        ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(fit.img_p, fit.img_q)
+    return ranking_value(ex, ey, max(mx[1], my[1]), rank_residual)
 
 
-def search_subsets(coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = None) -> list[int]:
-    """Sizes of the vertex subsets (:meth:`ShapeMetric.subset`) that :func:`match` searches on
-    with these options, so that they can be computed once per shape."""
-    if search_vertices is not None:
-        return [int(search_vertices)]
-    return [int(k) for _, k in coarse_stages if k is not None]
+def _dense_fields(sx, sy, P, Q, fit: _Fit, dense) -> dict:
+    """The dense maps' fields of :class:`MatchResult` (:func:`gromov.dense.dense_maps`)."""
+    from .dense import dense_maps
 
-
-def _on_subset(DY: np.ndarray, vertices, candidates: np.ndarray):
-    """``(dom, DY[dom][:, dom], candidates as positions in dom)`` with ``dom`` the given vertices
-    and the candidates, sorted; None when ``vertices`` is None or ``dom`` is all of Y."""
-    if vertices is None:
-        return None
-    dom = np.union1d(np.asarray(vertices, dtype=np.int64), candidates)
-    if len(dom) >= len(DY):
-        return None
-    return dom, np.ascontiguousarray(DY[np.ix_(dom, dom)], dtype=np.float64), np.searchsorted(dom, candidates)
-
-
-def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.ndarray:
-    """Images on X of points whose distances to the images of ``P`` are ``DY_rows`` (K, M).
-
-    Each point goes to the vertex v of X minimising sum_i (D_X(v, p_i) - d_i)^2: the
-    reverse map that is consistent with a given forward map, so that the two halves of the
-    two-sided correspondence start on the same branch (e.g. the same left/right choice).
-    ``DX`` must be symmetric (its rows ``P`` are read for its columns).
-    """
-    At = DX[P]                                               # (M, n_X) = DX[:, P].T
-    cost = (At * At).sum(0)[None, :] - 2.0 * (DY_rows @ At)  # + |d|^2, constant per row
-    return np.argmin(cost, axis=1).astype(np.int64)
-
-
-def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndarray:
-    """The ``k`` vertices of ``target`` with the closest signatures, at least 5% of the diameter apart."""
-    cost = np.abs(target.descriptors - signature).sum(axis=1)
-    order = np.argsort(cost, kind="stable")
-    radius = 0.05 * target.diameter
-    D = target.distances
-    free = np.ones(len(order), dtype=bool)  # free[i]: order[i] is farther than radius from all chosen
-    chosen: list[int] = []
-    while len(chosen) < k:
-        i = int(np.argmax(free))
-        if not free[i]:
-            break
-        v = int(order[i])
-        chosen.append(v)
-        free &= D[v][order] > radius  # D is symmetric: a row, not a column
-    return np.asarray(chosen, dtype=np.int64)
+    mxy, myx = dense_maps(sx, sy, (P, fit.img_q), (fit.img_p, Q), refine=None if dense == "placed" else "zoomout")
+    return {"x_to_y_dense_face": mxy.face, "x_to_y_dense_bary": mxy.bary, "x_to_y_dense_vertex": mxy.vertex,
+            "y_to_x_dense_face": myx.face, "y_to_x_dense_bary": myx.bary, "y_to_x_dense_vertex": myx.vertex,
+            "input_faces": (_file_faces(sx), _file_faces(sy))}
 
 
 def gw_coupling(dx: np.ndarray, dy: np.ndarray, *, max_iter: int = 1000) -> np.ndarray:
@@ -754,115 +854,6 @@ def gw_coupling(dx: np.ndarray, dy: np.ndarray, *, max_iter: int = 1000) -> np.n
     a = np.full(len(dx), 1.0 / len(dx))
     b = np.full(len(dy), 1.0 / len(dy))
     return ot.gromov.gromov_wasserstein(dx, dy, a, b, loss_fun="square_loss", max_iter=max_iter)
-
-
-def initial_pairs(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray, *,
-                  n_starts: int = DEFAULT_N_STARTS, n_extend: int = DEFAULT_N_EXTEND,
-                  coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = DEFAULT_SEARCH_VERTICES,
-                  all_starts: bool = False, extend_keep: float = EXTEND_KEEP,
-                  signature_weight: float = SIGNATURE_WEIGHT) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The two-sided starts of :func:`match`'s GMDS: pairs ``(images of P on Y, images of Q on X)``
-    (working vertex ids).
-
-    :func:`greedy_init` from X to Y, with the images of ``Q`` anchored on it
-    (:func:`anchored_images`), then the same from Y to X: two pairs, or with ``all_starts`` one
-    per extended start of each direction (``n_extend`` forward ones first). The options are
-    :func:`match`'s.
-    """
-    st = _Starts(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend, coarse_stages=coarse_stages,
-                 search_vertices=search_vertices, extend_keep=extend_keep, signature_weight=signature_weight)
-    return st.plain(all_starts)
-
-
-class _Starts:
-    """Both directions of :func:`initial_pairs`' search, kept for more starts later."""
-
-    def __init__(self, sx, sy, P, Q, *, n_starts, n_extend, coarse_stages, search_vertices,
-                 extend_keep=EXTEND_KEEP, signature_weight=SIGNATURE_WEIGHT):
-        self.sx, self.sy, self.P, self.Q = sx, sy, P, Q
-        DX, DY = sx.distances, sy.distances
-        self.dx_pp, self.dy_qq = DX[np.ix_(P, P)], DY[np.ix_(Q, Q)]
-        cand_y = _candidates(sx.descriptors[P[0]], sy, n_starts)
-        cand_x = _candidates(sy.descriptors[Q[0]], sx, n_starts)
-
-        def search(s):  # (stages, domain): the vertex subsets of the initial search on s
-            if search_vertices is not None:  # one subset for the whole search
-                return [(c, None) for c, _ in coarse_stages], s.subset(search_vertices)
-            return [(c, None if k is None else s.subset(k)) for c, k in coarse_stages], None
-
-        (st_y, dom_y), (st_x, dom_x) = search(sy), search(sx)
-        sig_y = sig_x = None
-        if signature_weight > 0:  # per image of the first samples, on all vertices of the target
-            c = max(c for c, _ in coarse_stages)
-            sig_y = signature_weight * signature_mismatch(sx, sy, P[:c])
-            sig_x = signature_weight * signature_mismatch(sy, sx, Q[:c])
-        self.fwd = _Search(self.dx_pp, DY, cand_y, st_y, n_extend, dom_y, extend_keep, sig_y)
-        self.bwd = _Search(self.dy_qq, DX, cand_x, st_x, n_extend, dom_x, extend_keep, sig_x)
-
-    def _pairs(self, fwd, bwd):
-        DX, DY, P, Q = self.sx.distances, self.sy.distances, self.P, self.Q
-        return ([(f, anchored_images(DX, P, DY[np.ix_(Q, f)])) for f in fwd]
-                + [(anchored_images(DY, Q, DX[np.ix_(P, b)]), b) for b in bwd])
-
-    def plain(self, all_starts: bool):
-        """Pairs of the extended starts: all of them, or each direction's best."""
-        fwd, bf = self.fwd.extend_plain(polish_all=all_starts)
-        bwd, bb = self.bwd.extend_plain(polish_all=all_starts)
-        if not all_starts:
-            return self._pairs([fwd[bf][0]], [bwd[bb][0]])
-        return self._pairs([i for i, _ in fwd], [i for i, _ in bwd])
-
-    def preserving(self, count: int, reversing: bool = False):
-        """Pairs of up to ``count`` more orientation-preserving (or reversing) starts per
-        stage and direction."""
-        fwd = self.fwd.extend_preserving(_orient(self.sx, self.sy, self.P, self.dx_pp), count, reversing)
-        bwd = self.bwd.extend_preserving(_orient(self.sy, self.sx, self.Q, self.dy_qq), count, reversing)
-        return self._pairs([i for i, _ in fwd], [i for i, _ in bwd])
-
-
-def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray | None:
-    """:meth:`ShapeMetric.symmetry`."""
-    if not s.normals[1] or n_samples > s.mesh.n_vertices:
-        return None
-    P = s.samples(n_samples, seed)
-    # a shape against itself has no change of topology to set aside: the plain extension (with
-    # the trimmed one the wolf's reflection sent 31% of its vertices astray, not 1.3%), and no
-    # signature-guided stages (with them the wolf's reflection again sent 31% of its vertices
-    # astray)
-    search = _Starts(s, s, P, P, n_starts=DEFAULT_N_STARTS, n_extend=DEFAULT_N_EXTEND,
-                     coarse_stages=DEFAULT_COARSE_STAGES, search_vertices=DEFAULT_SEARCH_VERTICES,
-                     extend_keep=1.0, signature_weight=0.0)
-    pairs = search.plain(all_starts=True) + search.preserving(-(-search.fwd.per_stage // 2) * 2,
-                                                                 reversing=True)
-    at = [_at_vertices(s, s, a, b) for a, b in pairs]
-    flips = pairs_orientation(s, s, P, P, at) < 0.5
-    if not flips.any():
-        return None
-    gm = SymmetricGMDS(s.surface, s.surface, P, P)
-    scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
-    img_p, img_q, _, _ = gm.solve(*at[int(np.flatnonzero(flips)[np.argmin(scores[flips])])])
-    D = s.distances
-    for _ in range(INVOLUTION_REPAIRS):
-        # a reflection is its own inverse: both halves of the self-map must agree. Where
-        # they do not (on a quadruped: a leg sent to another leg, a map of lower distortion
-        # than the reflection in the diffusion metric), re-anchor those samples on the
-        # agreeing ones and descend again from the one-map start
-        f, g = img_p.vertex(s.mesh.faces), img_q.vertex(s.mesh.faces)
-        ok = D[f, g] < INVOLUTION_TOL * s.diameter
-        if ok.all() or ok.sum() < 3:
-            break
-        f[~ok] = anchored_images(D, f[ok], D[np.ix_(P[~ok], P[ok])])
-        img_p, img_q, _, _ = gm.solve(*_at_vertices(s, s, f, f))
-    if not (pair_orientation(s, s, P, P, img_p, img_q) < 0.5
-            and gm.distortion(img_p, img_q, 2.0) < SYMMETRY_TOL * s.diameter):
-        return None
-    images = img_p.vertex(s.mesh.faces)
-    return anchored_images(D, images, D[:, P])
-
-
-def _at_vertices(sx, sy, img_p, img_q) -> tuple[SurfacePoints, SurfacePoints]:
-    return SurfacePoints.at_vertices(sy.mesh, img_p), SurfacePoints.at_vertices(sx.mesh, img_q)
-
 
 def discrete_blocks(DX: np.ndarray, DY: np.ndarray, P: np.ndarray, Q: np.ndarray, img_p: np.ndarray,
                     img_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -882,48 +873,6 @@ def _images_at_points(s: "ShapeMetric", images: np.ndarray):
     n = len(images)
     return np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), s.working.to_input_ids(images)
 
-
-def _orient(sa: "ShapeMetric", sb: "ShapeMetric", A: np.ndarray, da: np.ndarray):
-    """The orientation agreement of vertex images ``(s, c)`` on ``sb`` of the first ``c`` of
-    the samples ``A`` of ``sa`` (``da`` their distances)."""
-    (na, _), (nb, _) = sa.normals, sb.normals
-    xa, xb = sa.mesh.vertices, sb.mesh.vertices
-
-    def agreement(imgs: np.ndarray) -> np.ndarray:
-        imgs = np.asarray(imgs, dtype=np.int64)
-        c = imgs.shape[1]
-        head = A[:c]
-        return orientation_agreements(xa[head], na[head], da[:c, :c], xb[imgs], nb[imgs])
-
-    return agreement
-
-
-def pair_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray,
-                     img_p: SurfacePoints, img_q: SurfacePoints) -> float:
-    """Orientation agreement of a two-sided correspondence (the mean of its two directions;
-    :func:`gromov.orientation.orientation_agreement`); NaN unless both working meshes are
-    orientable."""
-    return float(pairs_orientation(sx, sy, P, Q, [(img_p, img_q)])[0])
-
-
-def pairs_orientation(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray,
-                      pairs: list) -> np.ndarray:
-    """:func:`pair_orientation` of several correspondences ``(img_p, img_q)`` of the same
-    samples at once (the samples' neighbour triangles are found once)."""
-    (nx, okx), (ny, oky) = sx.normals, sy.normals
-    if not (okx and oky):
-        return np.full(len(pairs), np.nan)
-    out = []
-    for side, (sa, sb, A, nb) in enumerate(((sx, sy, P, ny), (sy, sx, Q, nx))):
-        imgs = [pair[side] for pair in pairs]
-        pos = np.stack([img.positions(sb.mesh.vertices, sb.mesh.faces) for img in imgs])
-        nrm = np.stack([np.einsum("kc,kcd->kd", img.bary, nb[sb.mesh.faces[img.face]]) for img in imgs])
-        out.append(orientation_agreements(sa.mesh.vertices[A], sa.normals[0][A], sa.distances[np.ix_(A, A)],
-                                          pos, nrm))
-    return 0.5 * (out[0] + out[1])
-
-
-# ----------------------------------------------------------------------------- match
 def check_rank_tau_scale(value) -> float | None:
     """``rank_tau_scale`` as a float (or None), or ``ValueError`` unless a positive finite number."""
     if value is None:
@@ -965,289 +914,29 @@ def _metric_signature(s: "ShapeMetric") -> str:
 def match_options_for(shapes, metric: str, metric_options: dict | None) -> dict:
     """Metric options for the shapes of a correspondence that are not prepared yet.
 
-    Given ``metric_options``: :func:`~gromov.metrics.diffusion.correspondence_options` of
-    them. Not given: those of the first prepared :class:`ShapeMetric` among ``shapes`` (so
-    that both sides of a match measure in the same metric), else the correspondence's
-    defaults (normalised heat distributions for the heat kernel).
+    :func:`~gromov.metrics.diffusion.correspondence_options` of ``metric_options``, or when
+    not given of those of the first prepared :class:`ShapeMetric` among ``shapes`` (so that
+    both sides of a match measure in the same metric, the one :func:`match` measures the
+    prepared shape in), else the correspondence's defaults (normalised heat distributions for
+    the heat kernel).
     """
     if metric_options is None:
         for s in shapes:
             if isinstance(s, ShapeMetric) and s.metric == metric:
-                return dict(s.metric_options)
+                return correspondence_options(metric, s.metric_options)
     return correspondence_options(metric, metric_options)
 
 
-def _as_shape(s, metric, resolution, metric_options, name: str) -> ShapeMetric:
+def _as_shape(s, metric, resolution, metric_options, name: str, as_prepared: bool = False) -> ShapeMetric:
+    """``s`` with its metric: a prepared shape in the correspondence's metric
+    (:meth:`ShapeMetric.for_correspondence`) or, ``as_prepared``, in its own."""
     if isinstance(s, ShapeMetric):
         if s.metric != metric:
             raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
-        return s
+        return s if as_prepared else s.for_correspondence()
     if not isinstance(s, (str, os.PathLike)):
         s = as_shape(s, name=name)   # arrays and mesh objects: errors and warnings name X or Y
     return ShapeMetric(s, metric, resolution=resolution, metric_options=metric_options)
-
-
-def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", solver: str = "gmds",
-          init: str = "greedy", n_starts: int = DEFAULT_N_STARTS, n_extend: int = DEFAULT_N_EXTEND,
-          coarse_stages=DEFAULT_COARSE_STAGES,
-          search_vertices: int | None = DEFAULT_SEARCH_VERTICES, seed: int = 0,
-          resolution: int | None = DEFAULT_RESOLUTION,
-          metric_options: dict | None = None, max_iter: int = 100, tol: float = 1e-6,
-          radius: float | None = None, orientation: str = "prefer",
-          extend_keep: float = EXTEND_KEEP, signature_weight: float = SIGNATURE_WEIGHT,
-          rank_tau_scale: float | None = None, rank_residual: str = "difference",
-          dense: bool | str = False) -> MatchResult:
-    r"""Gromov-Hausdorff distance and correspondence between two shapes.
-
-    Minimises the distortion of a two-sided correspondence C between farthest point samples,
-    :math:`\hat d_{GH}(X, Y) = \tfrac12 \min_C \mathrm{dis}_p(C)`, by symmetric GMDS from a
-    multi-start initial search (Bronstein et al., IJCV 2010, §2 and §4). How the search and
-    its defaults were chosen: docs/design/initial-search.md.
-
-    Parameters
-    ----------
-    X, Y : Mesh, PointCloud, path, (vertices, faces), (n, 3) array, trimesh.Trimesh or ShapeMetric
-        A :class:`ShapeMetric` reuses its metric. With a point cloud on either side the map is
-        the search's discrete one: images at points (face -1, NaN barycentrics).
-    metric : {"diffusion", "geodesic", "euclidean"}, default "diffusion"
-    n_samples : int, default 100
-        Farthest point samples per shape.
-    norm : {"l2", "linf"} or "p:VALUE", default "l2"
-        Norm of the distortion that is minimised and reported as ``distance``.
-    solver, init : {"gmds", "gw"}, {"greedy", "gw"}, default "gmds", "greedy"
-        Symmetric GMDS or the Gromov-Wasserstein coupling (POT); GMDS's start ("gw": the argmax).
-    n_starts, n_extend : int, default 128, 8
-        Candidate images of the first sample (closest signatures, at least 5% of the diameter
-        apart), and coarse starts per direction extended to all samples.
-    coarse_stages : sequence of (int, int or None), default ((12, None), (20, 1000))
-        Each stage places the first ``c`` samples from every candidate, over ``k`` farthest
-        point samples of the target (None: all its working vertices).
-    search_vertices : int or None, default None
-        Run the search on this many farthest point samples of each target (faster).
-    seed : int, default 0
-        Seeds the farthest point sampling; the rest is deterministic.
-    resolution : int or None, default 3000
-        Working mesh size for shapes not prepared already (None: the input as it is).
-    metric_options : dict, optional
-        Default: a prepared shape's, else :func:`~gromov.metrics.diffusion.correspondence_options`.
-    max_iter, tol : int, float, default 100, 1e-6
-        GMDS sweeps and relative stopping tolerance.
-    radius : float, optional
-        Partial matching: only pairs of samples closer than ``radius`` count.
-    orientation : {"prefer", "ignore"}, default "prefer"
-        "prefer": a mirrored map is replaced by an orientation-preserving one within
-        ``ORIENTATION_TOL`` (10%) of its distortion, or by its composition with a reflection
-        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`).
-    extend_keep : float, default 1
-        Below 1: each extended start descends on this fraction of its samples
-        (``EXTEND_ROUNDS`` rounds of sample-level least trimmed squares).
-    signature_weight : float, default 1
-        Weight w of the per-image cost :math:`w\,(c - 1)\,\delta(k, v)^2` (δ: signature
-        mismatch) in each coarse stage's second run, from ``SIGNATURE_STARTS`` candidates; 0: off.
-    rank_tau_scale, rank_residual : float or None, {"difference", "log"}, default None, "difference"
-        How ``ranking_distance`` is measured (:func:`ranking_value`): with the heat distance
-        at this times the diffusion time, of distance differences or log ratios.
-    dense : bool, "zoomout" or "placed", default False
-        Also map every input vertex (:mod:`gromov.dense`), refined by ZoomOut unless "placed".
-
-    Returns
-    -------
-    MatchResult
-
-    Examples
-    --------
-    >>> r = match("cat0.off.gz", "cat1.off.gz")                 # doctest: +SKIP
-    >>> r.relative_distance, r.x_to_y_vertex[:3]                # doctest: +SKIP
-    """
-    t0 = time.perf_counter()
-    p = parse_norm(norm)
-    norm_name = "l2" if p == 2 else ("linf" if np.isinf(p) else f"p:{p:g}")
-    if solver not in ("gmds", "gw"):
-        raise ValueError(f"solver must be 'gmds' or 'gw', got {solver!r}")
-    if init not in ("greedy", "gw"):
-        raise ValueError(f"init must be 'greedy' or 'gw', got {init!r}")
-    if orientation not in ("ignore", "prefer"):
-        raise ValueError(f"orientation must be 'ignore' or 'prefer', got {orientation!r}")
-    if not 0.0 < extend_keep <= 1.0:
-        raise ValueError(f"extend_keep must be in (0, 1], got {extend_keep!r}")
-    check_rank_tau_scale(rank_tau_scale)
-    check_rank_residual(rank_residual)
-    if not (np.isfinite(signature_weight) and signature_weight >= 0):
-        raise ValueError(f"signature_weight must be a finite number >= 0, got {signature_weight!r}")
-    checked = [("n_starts", n_starts), ("n_extend", n_extend)]
-    if search_vertices is not None:
-        checked.append(("search_vertices", search_vertices))
-    for name, value in checked:
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    try:
-        coarse_stages = [(int(c), None if k is None else int(k)) for c, k in coarse_stages]
-    except (TypeError, ValueError):
-        raise ValueError("coarse_stages must be pairs (samples, vertices or None), got "
-                         f"{coarse_stages!r}") from None
-    if not coarse_stages or any(c < 1 or (k is not None and k < 1) for c, k in coarse_stages):
-        raise ValueError(f"coarse_stages must be non-empty pairs of positive sizes, got {coarse_stages!r}")
-    metric_options = match_options_for((X, Y), metric, metric_options)
-    sx = _as_shape(X, metric, resolution, metric_options, "X")
-    sy = _as_shape(Y, metric, resolution, metric_options, "Y")
-    if sx.has_faces != sy.has_faces and metric != "euclidean":   # (straight lines: the same either way)
-        warnings.warn(f"{'Y' if sx.has_faces else 'X'} is a point cloud and the other a mesh: their "
-                      f"{metric} distances are computed differently (a mesh's own construction, a "
-                      "cloud's from its nearest neighbours), so the distortion compares two metrics; "
-                      "for comparable distances match the mesh's vertices as a point cloud too",
-                      GromovWarning, stacklevel=2)
-    elif _metric_signature(sx) != _metric_signature(sy):
-        warnings.warn(f"X and Y measure distances differently ({_metric_signature(sx)} vs "
-                      f"{_metric_signature(sy)}): their distortion compares two different metrics; "
-                      f"prepare both ShapeMetrics with the same metric_options", GromovWarning, stacklevel=2)
-    for name, s in (("X", sx), ("Y", sy)):
-        if n_samples > s.mesh.n_vertices:
-            raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")
-    if n_samples < 3:
-        raise ValueError(f"n_samples must be at least 3, got {n_samples}")
-    # a point cloud has no faces: images stay at points (the initial search's discrete maps)
-    discrete = not (sx.has_faces and sy.has_faces)
-    if discrete and radius is not None:
-        raise ValueError("radius (partial matching) weighs the GMDS refinement on the surfaces, which "
-                         "needs triangle meshes; X or Y is a point cloud")
-    for name, s in (("X", sx), ("Y", sy)):
-        if discrete and not s.finite:   # (on meshes SurfaceDistance says so)
-            raise MetricError(f"{name}: matching needs finite distances, got inf or NaN (a shape in "
-                              f"pieces: a point cloud whose {s.metric} neighbour graph falls apart -- "
-                              "give the geodesic metric more neighbours, metric_options={'k': ...} -- "
-                              "or a mesh with several components: use Mesh.largest_component())")
-    P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
-    DX, DY = sx.distances, sy.distances
-    dx_pp, dy_qq = DX[np.ix_(P, P)], DY[np.ix_(Q, Q)]
-    gm = None if discrete else SymmetricGMDS(sx.surface, sy.surface, P, Q, p=p, max_iter=max_iter,
-                                             tol=tol, radius=radius)
-
-    def score(a, b):   # the two-sided L2 distortion of a start (vertex images)
-        if discrete:
-            ex, ey = discrete_blocks(DX, DY, P, Q, a, b)
-            return norm_value((ex - ey)[~np.eye(len(ex), dtype=bool)], 2.0)
-        return gm.distortion(*_at_vertices(sx, sy, a, b), 2.0)
-
-    prefer = orientation == "prefer" and solver == "gmds" and init == "greedy" and not discrete
-    if prefer and not (sx.normals[1] and sy.normals[1]):
-        warnings.warn("orientation='prefer' needs orientable working meshes (a Moebius-like "
-                      "piece cannot be given an outward side); ignored", GromovWarning, stacklevel=2)
-        prefer = False
-    if solver == "gw" or init == "gw":
-        T = gw_coupling(dx_pp, dy_qq)
-        img_p0, img_q0 = Q[np.argmax(T, axis=1)], P[np.argmax(T, axis=0)]
-    else:
-        # each direction on its own, then the other direction anchored on it; keep the
-        # consistent pair with the lower two-sided distortion
-        search = _Starts(sx, sy, P, Q, n_starts=n_starts, n_extend=n_extend, coarse_stages=coarse_stages,
-                         search_vertices=search_vertices, extend_keep=extend_keep,
-                         signature_weight=signature_weight)
-        pairs = search.plain(all_starts=False)
-        scores = [score(a, b) for a, b in pairs]
-        img_p0, img_q0 = pairs[int(np.argmin(scores))]
-    n_iter, converged, history, orient = 0, True, [], float("nan")
-    if not discrete:
-        img_p, img_q = _at_vertices(sx, sy, img_p0, img_q0)
-        if solver == "gmds":
-            img_p, img_q, n_iter, converged = gm.solve(img_p, img_q)
-        history = list(gm.history)
-        orient = pair_orientation(sx, sy, P, Q, img_p, img_q)
-    if prefer and not orient > 0.5:
-        # a mirrored (or scrambled) map: GMDS from the best orientation-preserving start too,
-        # among the extended starts and more preserving ones; keep it if nearly as good
-        pairs = search.plain(all_starts=True) + search.preserving(-(-search.fwd.per_stage // 2))
-        at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
-        keep = pairs_orientation(sx, sy, P, Q, at) > 0.5
-        d_first = gm.distortion(img_p, img_q, 2.0)
-
-        def attempt(start, tol_k):
-            h0 = len(gm.history)
-            alt = gm.solve(*start)
-            o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
-            if o_alt > 0.5 and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + tol_k) * d_first:
-                return (*alt, gm.history[h0:], o_alt)
-            return None
-
-        # a clearly direct map (agreement above 1/2 + DIRECT_MARGIN) is taken at once; one that
-        # is direct only on part of the shapes (agreement near 1/2) only if no clearly direct
-        # one turns up -- first the preserving start, then the compositions
-        found = partial = None
-        if keep.any():  # the best orientation-preserving start
-            scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
-            alt = attempt(at[int(np.flatnonzero(keep)[np.argmin(scores[keep])])], ORIENTATION_TOL)
-            if alt is not None and alt[-1] > 0.5 + DIRECT_MARGIN:
-                found = alt
-            else:
-                partial = alt
-        if found is None:  # the mirrored map composed with a reflection of X, then of Y
-            fp, gq = img_p.vertex(sy.mesh.faces), img_q.vertex(sx.mesh.faces)
-            for s_ in (sx, sy):
-                sym = s_.symmetry(n_samples, seed)
-                if sym is None:
-                    continue
-                if s_ is sx:  # f o S_X on P (f carried to S_X(P) by its distances), S_X o g on Q
-                    start = (anchored_images(DY, fp, DX[np.ix_(sym[P], P)]), sym[gq])
-                else:         # S_Y o f on P, g o S_Y on Q
-                    start = (sym[fp], anchored_images(DX, gq, DY[np.ix_(sym[Q], Q)]))
-                alt = attempt(_at_vertices(sx, sy, *start), FLIP_TOL)
-                if alt is not None and alt[-1] > 0.5 + DIRECT_MARGIN:
-                    found = alt
-                    break
-                if partial is None:
-                    partial = alt
-        if found is None:
-            found = partial
-        if found is not None:
-            img_p, img_q, n_iter, converged, history, orient = found
-
-    dx, dy = discrete_blocks(DX, DY, P, Q, img_p0, img_q0) if discrete else gm.blocks(img_p, img_q)
-    residual = dx - dy
-    np.fill_diagonal(residual, 0.0)   # not a pair (an interpolated self-distance need not be 0)
-    r = residual[~np.eye(len(dx), dtype=bool)]
-    dis = norm_value(r, p)
-    d_l2, d_linf, d_trim = norm_value(r, 2.0), norm_value(r, np.inf), trimmed_rms(r)
-    diam = max(sx.diameter, sy.diameter)
-    mx = my = None
-    if rank_tau_scale is not None:
-        mx, my = sx.ranking_surface(rank_tau_scale), sy.ranking_surface(rank_tau_scale)
-    if mx is not None and my is not None:   # the same correspondence in the finer heat metric
-        if discrete:
-            ex, ey = mx[0].block(np.r_[P, img_q0]), my[0].block(np.r_[img_p0, Q])
-        else:
-            ex, ey = SymmetricGMDS(mx[0], my[0], P, Q).blocks(img_p, img_q)
-        ranking = ranking_value(ex, ey, max(mx[1], my[1]), rank_residual)
-    else:                                   # in the match's metric ("difference": relative_trimmed)
-        ranking = ranking_value(dx, dy, diam, rank_residual)
-    if discrete:
-        xy_face, xy_bary, xy_vertex = _images_at_points(sy, img_p0)
-        yx_face, yx_bary, yx_vertex = _images_at_points(sx, img_q0)
-    else:
-        xy_face, xy_bary, xy_vertex = sy.locate(img_p)
-        yx_face, yx_bary, yx_vertex = sx.locate(img_q)
-    extra = {}
-    if dense:
-        from .dense import dense_maps
-
-        on_x, on_y = ((P, img_q0), (img_p0, Q)) if discrete else ((P, img_q), (img_p, Q))
-        if dense not in (True, "zoomout", "placed"):
-            raise ValueError(f"dense must be True, False, 'zoomout' or 'placed', got {dense!r}")
-        mxy, myx = dense_maps(sx, sy, on_x, on_y, refine=None if dense == "placed" else "zoomout")
-        extra = {"x_to_y_dense_face": mxy.face, "x_to_y_dense_bary": mxy.bary, "x_to_y_dense_vertex": mxy.vertex,
-                 "y_to_x_dense_face": myx.face, "y_to_x_dense_bary": myx.bary, "y_to_x_dense_vertex": myx.vertex,
-                 "input_faces": (_file_faces(sx), _file_faces(sy))}
-    return MatchResult(
-        distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
-        distortion_l2=d_l2, distortion_linf=d_linf, norm=norm_name, metric=metric, solver=solver,
-        n_samples=int(n_samples),
-        x_samples=sx.working.to_input_ids(P), x_to_y_face=xy_face, x_to_y_bary=xy_bary,
-        x_to_y_vertex=xy_vertex,
-        y_samples=sy.working.to_input_ids(Q), y_to_x_face=yx_face, y_to_x_bary=yx_bary,
-        y_to_x_vertex=yx_vertex,
-        n_iter=int(n_iter), converged=bool(converged), seconds=time.perf_counter() - t0,
-        orientation=orient, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
-        ranking_distance=ranking,
-        pair_distortion=residual,
-        history=np.asarray(history), **extra)
 
 
 def _file_faces(s: "ShapeMetric") -> np.ndarray | None:

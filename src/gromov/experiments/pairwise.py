@@ -10,14 +10,19 @@ from __future__ import annotations
 
 import logging
 import multiprocessing as mp
+import os
+import signal
+import sys
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gh import (DEFAULT_COARSE_STAGES, RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, check_rank_residual, match,
+from ..gh import (RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, _match, _upgrade_options, check_rank_residual,
                   match_options_for, search_subsets)
+from ..search import SearchOptions
 
 __all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
@@ -27,6 +32,7 @@ _SHAPES: list[ShapeMetric] = []   # set before forking workers
 _OPTIONS: dict = {}
 _KEEP: frozenset = frozenset()
 _MATRIX = False                   # gh_matrix: distances with orientation="ignore"
+_RECORD = None                    # gh_matrix with a store: records each pair as it finishes
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,19 +63,21 @@ def _pair(ij):
     i, j = ij
     x, y = _SHAPES[i], _SHAPES[j]
     if not _MATRIX:
-        r = match(x, y, x.metric, **_OPTIONS)
+        r = _match(x, y, x.metric, **_OPTIONS)
         return r.distance, r.relative_distance, r.relative_trimmed, r
     # the GH estimate: the lowest distortion found, mirror images included
     options = dict(_OPTIONS)
     orientation = options.pop("orientation", "prefer")
-    r = match(x, y, x.metric, orientation="ignore", **options)
+    r = _match(x, y, x.metric, orientation="ignore", as_prepared=True, **options)
+    if _RECORD is not None:
+        _RECORD(ij, r)
     full = None
     if (i, j) in _KEEP:
         full = r
         # mirrored: the same run, then more (NaN -- a point cloud, a non-orientable mesh --
         # has no orientation to prefer, and "prefer" would give the same map)
         if orientation == "prefer" and not r.orientation > 0.5 and np.isfinite(r.orientation):
-            full = match(x, y, x.metric, orientation="prefer", **options)
+            full = _match(x, y, x.metric, orientation="prefer", as_prepared=True, **options)
     return r.distance, r.relative_distance, r.ranking_distance, full
 
 
@@ -81,6 +89,46 @@ def available_cpus() -> int:
     if hasattr(os, "sched_getaffinity"):
         return max(1, len(os.sched_getaffinity(0)))
     return max(1, os.cpu_count() or 1)  # pragma: no cover - not on Linux
+
+def _init_worker(parent: int) -> None:
+    """Worker initializer: die with the parent (:func:`_die_with_parent`), one thread each
+    (:func:`_one_thread_per_worker`)."""
+    _die_with_parent(parent)
+    _one_thread_per_worker()
+
+
+#: Seconds between a worker's checks that its parent is alive (where the kernel cannot tell it).
+PARENT_POLL_S = 1.0
+
+
+def _die_with_parent(parent: int) -> None:
+    """Make this worker process end when the process ``parent`` that started it ends.
+
+    A pool's workers outlive a parent killed with SIGKILL (nothing runs in the parent to stop
+    them): ``gromov pairwise --jobs 2`` left its two workers computing, 0.9 GB each. On Linux
+    the kernel sends the worker SIGKILL when its parent exits (``prctl(PR_SET_PDEATHSIG)``);
+    everywhere, a daemon thread checks every :data:`PARENT_POLL_S` seconds that the parent is
+    still the worker's parent and ends the worker when it is not.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            pr_set_pdeathsig = 1
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):   # pragma: no cover - no prctl: the thread below
+            pass
+    if os.getppid() != parent:   # the parent ended before the signal was asked for
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="gromov-parent-watch", daemon=True).start()
+
 
 def _one_thread_per_worker():
     """Worker initializer: ``jobs`` processes already fill the cores.
@@ -156,8 +204,7 @@ def _warn_if_too_big(prepared: list[ShapeMetric]) -> None:
 
 
 def _subsets(match_options: dict) -> list[int]:
-    return search_subsets(match_options.get("coarse_stages", DEFAULT_COARSE_STAGES),
-                          match_options.get("search_vertices"))
+    return match_options.get("search", SearchOptions()).subsets
 
 
 def _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=False):
@@ -173,7 +220,7 @@ def _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=False):
         with tqdm(total=len(pairs), desc=desc, disable=not progress, leave=False) as bar:
             if jobs > 1 and len(pairs) > 1 and "fork" in mp.get_all_start_methods():
                 with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork"),
-                                         initializer=_one_thread_per_worker) as pool:
+                                         initializer=_init_worker, initargs=(os.getpid(),)) as pool:
                     for r in pool.map(_pair, pairs, chunksize=max(1, len(pairs) // (8 * jobs))):
                         out.append(r)
                         bar.update(1)
@@ -193,10 +240,14 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 
     Each shape is prepared once (as in :func:`gh_matrix`); pairs run in ``jobs`` forked
     worker processes. Returns the :class:`gromov.MatchResult` of each pair, in order. As in
-    :func:`gromov.match`, shapes not prepared yet get the correspondence's metric options, or
-    without ``metric_options`` those of the prepared ones (:func:`gromov.gh.match_options_for`).
+    :func:`gromov.match`, prepared shapes are measured in the correspondence's metric
+    (:meth:`ShapeMetric.for_correspondence <gromov.gh.ShapeMetric.for_correspondence>`), and
+    shapes not prepared yet get the correspondence's metric options, or without
+    ``metric_options`` those of the prepared ones (:func:`gromov.gh.match_options_for`).
     """
-    shapes = list(shapes)
+    match_options = _upgrade_options(match_options, "match_pairs")
+    shapes = [s.for_correspondence() if isinstance(s, ShapeMetric) and s.metric == metric else s
+              for s in shapes]
     pairs = [(int(i), int(j)) for i, j in pairs]
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
@@ -215,7 +266,7 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
               keep=(), known: dict | None = None, rank_tau_scale: float | None = RANK_TAU_SCALE,
-              rank_residual: str = RANK_RESIDUAL, **match_options) -> PairwiseGH:
+              rank_residual: str = RANK_RESIDUAL, store=None, **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -242,15 +293,22 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         run again.
     rank_tau_scale : float or None, default RANK_TAU_SCALE (0.5)
         With the heat-kernel diffusion metric, ``trimmed`` measures each correspondence with
-        the heat distance at this times the diffusion time (:func:`gromov.match`'s
-        ``rank_tau_scale``); None, or another metric: in the metric of the match. The GH
+        the heat distance at this times the diffusion time (its
+        :attr:`~gromov.MatchResult.ranking_distance`); None, or another metric: in the metric of the match. The GH
         estimates (``distance``, ``relative``) and the correspondences are the same either way.
     rank_residual : {"log", "difference"}, default RANK_RESIDUAL ("log")
-        How ``trimmed`` summarises each correspondence's residuals (:func:`gromov.match`'s
-        ``rank_residual``): the log ratios of corresponding distances (a multiplicative
+        How ``trimmed`` summarises each correspondence's residuals
+        (:func:`gromov.gh.ranking_value`): the log ratios of corresponding distances (a multiplicative
         distortion) or their differences over the larger diameter (the additive form).
+    store : str, os.PathLike or gromov.store.ShapeStore, optional
+        A shape store (:mod:`gromov.store`): each shape is read from it, or computed and
+        added to it; each pair's result is recorded there as soon as it is found, and pairs
+        recorded before (the same two entries in the same order, the same match options and
+        gromov version) are not run again, so an interrupted run continues where it stopped
+        and gives the same matrices. Pairs in ``keep`` are always run (their full
+        ``MatchResult`` is not stored).
     **match_options
-        Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``...).
+        Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``, ``search``...).
 
     Returns
     -------
@@ -270,7 +328,14 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     check_rank_residual(rank_residual)
+    match_options = _upgrade_options(match_options, "gh_matrix")
     t0 = time.perf_counter()
+    if store is not None:
+        from ..store import as_store
+
+        store = as_store(store)
+        shapes = store.shapes(shapes, metric, resolution=resolution, metric_options=metric_options,
+                              rank_tau_scale=rank_tau_scale, progress=progress)
     prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
                        metric_options=metric_options, progress=progress,
                        subsets=_subsets(match_options), rank_tau_scale=rank_tau_scale)
@@ -287,15 +352,23 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     missing = [ij for ij in keep if ij in known and known[ij][3] is None]
     if missing:
         raise ValueError(f"known pairs in keep need their MatchResult, missing for {sorted(missing)[:3]}")
+    options = dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale,
+                   rank_residual=rank_residual, **match_options)
+    record = None
+    if store is not None:
+        known, record = _stored_pairs(store, prepared, known, keep, options)
     pairs = [(i, j) for i in range(n) for j in range(i + 1, n) if (i, j) not in known]
     dist = np.zeros((n, n))
     rel = np.zeros((n, n))
     trim = np.zeros((n, n))
     kept = {}
-    runs = _run(prepared, pairs, keep, jobs, progress, f"{metric} GH pairs",
-                dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale,
-                     rank_residual=rank_residual, **match_options),
-                matrix=True) if pairs else []
+    global _RECORD
+    _RECORD = record
+    try:
+        runs = _run(prepared, pairs, keep, jobs, progress, f"{metric} GH pairs", options,
+                    matrix=True) if pairs else []
+    finally:
+        _RECORD = None
     for (i, j), (d, r, t, full) in zip(pairs + list(known), list(runs) + list(known.values())):
         if full is not None and (i, j) not in keep:
             full = None
@@ -306,3 +379,28 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
             kept[i, j] = full
     return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim,
                       rank_tau_scale, rank_residual)
+
+
+def _stored_pairs(store, prepared, known: dict, keep: frozenset, options: dict):
+    """``known`` with the pairs the store has recorded (not those in ``keep``: their full
+    result is not stored), and the function that records each pair run now."""
+    from ..store import match_options_key
+
+    keys = [store.key_of(s) for s in prepared]
+    rest = {k: v for k, v in options.items() if k not in ("n_samples", "seed", "orientation")}
+    key_options = match_options_key(options["n_samples"], options["seed"], rest)
+    n = len(prepared)
+    todo = {(i, j): store.pair_key(keys[i], keys[j], key_options)
+            for i in range(n) for j in range(i + 1, n) if (i, j) not in known}
+    found = store.pair_values(todo.values())
+    known = dict(known)
+    for ij, k in todo.items():
+        if k in found and ij not in keep:
+            known[ij] = (*found[k], None)
+            store.pairs_reused += 1
+    logger.info("store %s: %d of %d pairs recorded before", store.root, len(known), n * (n - 1) // 2)
+
+    def record(ij, result):   # in the worker that found it
+        store.record_pair(todo[ij], keys[ij[0]], keys[ij[1]], key_options, result)
+
+    return known, record

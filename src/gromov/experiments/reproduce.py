@@ -49,6 +49,7 @@ import numpy as np
 
 from .. import perturb as _perturb
 from .._atomic import atomic_folder, atomic_write_text
+from .._json import finite
 from ..errors import GromovError
 from ..gh import RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, check_rank_residual, check_rank_tau_scale
 from ..mesh import Mesh
@@ -791,6 +792,17 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
 
 
 # ----------------------------------------------------------------------------- main
+def check_dependencies() -> None:
+    """Raise ImportError, before any work, when a package the run needs is missing: matplotlib
+    draws the report's figures (without it a run stopped at its first figure, after the
+    experiments). plotly's interactive pages are optional: without it they are left out."""
+    from importlib.util import find_spec
+
+    if find_spec("matplotlib") is None:
+        raise ImportError("gromov reproduce draws its figures with matplotlib, which is not installed: "
+                          "pip install 'gromov[plot]'")
+
+
 def _check_out(out: Path) -> None:
     """Refuse an ``out`` that replacing as a whole would lose files of the user's."""
     if out.exists() and not out.is_dir():
@@ -867,14 +879,14 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         EERs of both are recorded (``eer_gh``, ``eer_trimmed``).
     rank_tau_scale : float or None, default RANK_TAU_SCALE (0.5)
         The trimmed distortion of a heat-kernel diffusion correspondence is measured with the
-        heat distance at this times the diffusion time (:func:`gromov.match`'s
+        heat distance at this times the diffusion time (:func:`gromov.experiments.gh_matrix`'s
         ``rank_tau_scale``); None: in the metric of the match (the same scale). The
         correspondences, GH estimates and d(C, C0) do not depend on it. Recorded in ``params``.
     rank_residual : {"log", "difference"}, default RANK_RESIDUAL ("log")
         The trimmed distortion summarises the log ratios of corresponding distances (a
         multiplicative distortion, :func:`gromov.gmds.log_ratio_residuals`) or, in the
-        additive form, their differences over the larger diameter (:func:`gromov.match`'s
-        ``rank_residual``). Like ``rank_tau_scale`` it changes only the ranking. Recorded in
+        additive form, their differences over the larger diameter
+        (:func:`gromov.experiments.gh_matrix`'s ``rank_residual``). Like ``rank_tau_scale`` it changes only the ranking. Recorded in
         ``params``.
     pose_stretch : float, default 0
         Synthetic set only: ``Synthetic(pose_stretch=...)``, poses as far from isometric as
@@ -896,6 +908,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         values are fractions. ``topkids`` is None without TOPKIDS data.
     """
     t_start = time.perf_counter()
+    check_dependencies()
     if jobs is None:
         jobs = available_cpus()
     if int(jobs) < 1:
@@ -1010,7 +1023,8 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         for key in RESULT_KEYS:
             a, b, c = key.split(".")
             results[key] = results[a][b].get(c) if a == "correspondence" else results[a][b][c]
-        atomic_write_text(out / "results.json", json.dumps(results, indent=1, default=_json_default))
+        atomic_write_text(out / "results.json", json.dumps(finite(results), indent=1, default=_json_default,
+                                                                allow_nan=False))
         from .report import write_report
 
         write_report(json.loads((out / "results.json").read_text()), out)
