@@ -119,7 +119,7 @@ import numpy as np
 from . import mesh as _mesh
 from ._atomic import atomic_path, atomic_write_bytes
 from .errors import GromovWarning, MeshError, MeshFormatError
-from .mesh import Mesh, PointCloud
+from .mesh import COORDINATE_LIMIT, Mesh, PointCloud
 
 __all__ = ["load", "save", "FORMATS", "FileFormat", "MeshFileNotFoundError",
            "MissingDependencyError", "GZIP_RATIO", "GZIP_FLOOR", "MAX_COORDINATE"]
@@ -1815,12 +1815,10 @@ def _resolve(path: Path, file_type: str | None) -> tuple[str, bool]:
 
 
 # --------------------------------------------------------------------------- validation
-#: Largest coordinate magnitude read. Beyond it the geometry overflows float64: a face's
-#: cross product is of the order of the coordinates squared and its squared norm of their
-#: fourth power (1e75 ** 4 = 1e300). An icosphere scaled by 1e100 made ``gromov info`` fail
-#: (a ``ZeroDivisionError`` after overflow warnings) and ``gromov distances`` find NaNs;
-#: scaled by 1e75 both work.
-MAX_COORDINATE = 1e75
+#: Largest coordinate magnitude read: the bound every Mesh and PointCloud holds
+#: (:data:`gromov.mesh.COORDINATE_LIMIT`, where why is measured), checked here with the file's
+#: line.
+MAX_COORDINATE = COORDINATE_LIMIT
 
 
 def _finish(raw: RawShape, name: str, repair: bool) -> Mesh | PointCloud:
