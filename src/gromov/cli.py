@@ -968,15 +968,7 @@ def cmd_reproduce(args) -> int:
 
 
 # ----------------------------------------------------------------------------- parser
-def build_parser() -> argparse.ArgumentParser:
-    from .perturb import WELD_JOINS
-
-    p = argparse.ArgumentParser(prog="gromov", description=(
-        "Non-rigid shape matching in the Gromov-Hausdorff framework with diffusion geometry."))
-    p.add_argument("--version", action="version", version=f"gromov {__version__}")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv: debug)")
-    sub = p.add_subparsers(dest="command", required=True)
-
+def _info_parser(sub) -> None:
     q = sub.add_parser("info", help="counts, topology, diameter and bounding box of a mesh")
     q.add_argument("mesh", help="OFF, OBJ, PLY, STL, MAT, TOSCA .vert/.tri, XYZ point clouds (optionally "
                                 ".gz); VTK, VTU, Gmsh, Medit with gromov[formats]")
@@ -984,6 +976,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_args(q)
     q.set_defaults(func=cmd_info)
 
+
+def _distances_parser(sub) -> None:
     q = sub.add_parser("distances", help="distance matrix between farthest point samples")
     q.add_argument("mesh")
     _add_metric_args(q)
@@ -998,6 +992,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_args(q)
     q.set_defaults(func=cmd_distances)
 
+
+def _match_parser(sub) -> None:
     q = sub.add_parser("match", help="Gromov-Hausdorff distance and correspondence of two shapes")
     q.add_argument("x", help="first mesh (or point cloud: a file without faces; its images are points, "
                              "face -1 in --out)")
@@ -1041,6 +1037,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_args(q)
     q.set_defaults(func=cmd_match)
 
+
+def _index_parser(sub) -> None:
     q = sub.add_parser("index", help="compute each shape's working mesh and metric once and keep "
                                      "them in a shape store, for pairwise --store")
     q.add_argument("files", nargs="+", metavar="FILE", help="meshes or point clouds")
@@ -1059,6 +1057,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_args(q)
     q.set_defaults(func=cmd_index)
 
+
+def _pairwise_parser(sub) -> None:
     q = sub.add_parser("pairwise", help="Gromov-Hausdorff distances between all pairs of a set of "
                                         "shapes; nearest neighbours, EER and an MDS map")
     q.add_argument("files", nargs="+", metavar="FILE", help="meshes (two or more)")
@@ -1091,6 +1091,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_args(q)
     q.set_defaults(func=cmd_pairwise)
 
+
+def _perturb_parser(sub) -> None:
+    from .perturb import WELD_JOINS
+
     q = sub.add_parser("perturb", help="topological noise: weld close parts, or punch holes")
     q.add_argument("kind", choices=("weld", "holes"))
     q.add_argument("input")
@@ -1115,6 +1119,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("-q", "--quiet", action="store_true", help="no status line")
     _add_input_args(q)
     q.set_defaults(func=cmd_perturb)
+
+
+def _reproduce_parser(sub) -> None:
+    from .perturb import WELD_JOINS
 
     q = sub.add_parser("reproduce", help="the paper's experiments, results.json and an HTML report")
     q.add_argument("--data", nargs="?", const="", default=None, metavar="DIR",
@@ -1149,10 +1157,28 @@ def build_parser() -> argparse.ArgumentParser:
                         "TOSCA's are not (0.1: geodesic distances change by 2.4-6.5%%; default 0)")
     q.set_defaults(func=cmd_reproduce)
 
+
+def _demo_parser(sub) -> None:
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")
     q.add_argument("--samples", type=_positive_int, default=12)
     q.add_argument("--seed", type=int, default=0)
     q.set_defaults(func=cmd_demo)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gromov", description=(
+        "Non-rigid shape matching in the Gromov-Hausdorff framework with diffusion geometry."))
+    p.add_argument("--version", action="version", version=f"gromov {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv: debug)")
+    sub = p.add_subparsers(dest="command", required=True)
+    _info_parser(sub)
+    _distances_parser(sub)
+    _match_parser(sub)
+    _index_parser(sub)
+    _pairwise_parser(sub)
+    _perturb_parser(sub)
+    _reproduce_parser(sub)
+    _demo_parser(sub)
     return p
 
 

@@ -526,6 +526,33 @@ def _unfold(F, FL, Apol, ang, h, k, p, Px, Py, r, Rx, Ry, Qx, Qy):
     return Ex, Ey, (Apol[h, k] + t if inside else np.nan)
 
 
+@njit(cache=True, inline="always")
+def _put_edges(S, G, ns, c, a, b, la, lb, A0, dot):
+    """Row ``ns`` of ``S``, ``G``: the edges of a degenerate face at ``c`` (edge updates
+    only, flagged by ``b_y = 0``; see :func:`_build_stencils`)."""
+    S[ns, 0] = c
+    S[ns, 1] = a
+    S[ns, 2] = b
+    G[ns, 0] = la
+    G[ns, 1] = lb
+    G[ns, 2] = 0.0
+    G[ns, 3] = A0
+    G[ns, 4] = A0 + (np.pi if dot < 0.0 else 0.0)
+    G[ns, 5] = np.nan
+    G[ns, 6] = np.nan
+
+
+@njit(cache=True, inline="always")
+def _fan_point(ch_id, ch_xy, nch, v, x, y, al):
+    """Append vertex ``v`` at planar ``(x, y)``, with the polar angle ``al`` at it of its
+    direction to the centre, to the fan of :func:`_build_stencils`; the new length."""
+    ch_id[nch] = v
+    ch_xy[nch, 0] = x
+    ch_xy[nch, 1] = y
+    ch_xy[nch, 2] = al
+    return nch + 1
+
+
 @njit(cache=True)
 def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S, G, RE, RL):
     """Update stencils of every (vertex, incident face), obtuse angles split by unfolding.
@@ -583,16 +610,7 @@ def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S,
                 # degenerate face: keep its edges (edge updates only, flagged by b_y = 0)
                 if ns >= S.shape[0]:
                     return -1, nre, n_split, n_unsplit
-                S[ns, 0] = c
-                S[ns, 1] = a
-                S[ns, 2] = b
-                G[ns, 0] = la
-                G[ns, 1] = lb
-                G[ns, 2] = 0.0
-                G[ns, 3] = A0
-                G[ns, 4] = A0 + (np.pi if dot < 0.0 else 0.0)
-                G[ns, 5] = np.nan
-                G[ns, 6] = np.nan
+                _put_edges(S, G, ns, c, a, b, la, lb, A0, dot)
                 ns += 1
                 continue
             bx = dot / la
@@ -673,36 +691,16 @@ def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S,
             # side, [the splitting vertex], visible vertices on b's side, b; with the
             # polar angle at each of its direction to c
             nch = 0
-            ch_id[nch] = a
-            ch_xy[nch, 0] = la
-            ch_xy[nch, 1] = 0.0
-            ch_xy[nch, 2] = alA
-            nch += 1
+            nch = _fan_point(ch_id, ch_xy, nch, a, la, 0.0, alA)
             if fan:
                 for t in range(nlo):
-                    ch_id[nch] = lo_id[t]
-                    ch_xy[nch, 0] = lo_xy[t, 0]
-                    ch_xy[nch, 1] = lo_xy[t, 1]
-                    ch_xy[nch, 2] = lo_al[t]
-                    nch += 1
+                    nch = _fan_point(ch_id, ch_xy, nch, lo_id[t], lo_xy[t, 0], lo_xy[t, 1], lo_al[t])
             if mid >= 0:
-                ch_id[nch] = mid
-                ch_xy[nch, 0] = Mx
-                ch_xy[nch, 1] = My
-                ch_xy[nch, 2] = Mal
-                nch += 1
+                nch = _fan_point(ch_id, ch_xy, nch, mid, Mx, My, Mal)
             if fan:
                 for t in range(nhi - 1, -1, -1):
-                    ch_id[nch] = hi_id[t]
-                    ch_xy[nch, 0] = hi_xy[t, 0]
-                    ch_xy[nch, 1] = hi_xy[t, 1]
-                    ch_xy[nch, 2] = hi_al[t]
-                    nch += 1
-            ch_id[nch] = b
-            ch_xy[nch, 0] = bx
-            ch_xy[nch, 1] = by
-            ch_xy[nch, 2] = alB
-            nch += 1
+                    nch = _fan_point(ch_id, ch_xy, nch, hi_id[t], hi_xy[t, 0], hi_xy[t, 1], hi_al[t])
+            nch = _fan_point(ch_id, ch_xy, nch, b, bx, by, alB)
             for t in range(nch - 1):
                 ns = _put_stencil(S, G, ns, c, ch_id[t], ch_id[t + 1], ch_xy[t, 0],
                                   ch_xy[t, 1], ch_xy[t + 1, 0], ch_xy[t + 1, 1], A0,
