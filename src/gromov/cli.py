@@ -21,11 +21,13 @@ import numpy as np
 from . import __version__
 from ._atomic import atomic_path, atomic_savez_compressed
 from ._json import finite as _finite
+from ._defaults import (DEFAULT_RESOLUTION, DEFAULT_UNITS, DIFFUSION_FILL_HOLES, GZIP_FLOOR, GZIP_RATIO,
+                        HEAT_UNITS, LOCAL_SCALING_K, RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE,
+                        WELD_JOINS)
 from .errors import GromovError
 
 __all__ = ["main"]
 
-DEFAULT_RESOLUTION = 3000
 
 
 class _UserError(Exception):
@@ -109,7 +111,6 @@ def _size(text: str) -> int:
 
 
 def _add_input_args(p: argparse.ArgumentParser) -> None:
-    from .io import GZIP_FLOOR, GZIP_RATIO
 
     p.add_argument("--max-decompressed", type=_size, default=None, metavar="SIZE",
                    help=f"largest size a .gz input (or a compressed MATLAB variable) may decompress to, "
@@ -173,7 +174,6 @@ def _diffusion_options(args) -> dict:
             raise _UserError("--steps is the graph kernels' number of diffusion steps: use it with "
                              "--kernel connectivity or gaussian")
         opts["m"] = steps
-    from .metrics import DIFFUSION_FILL_HOLES
 
     fill = getattr(args, "fill_holes", None)
     if fill is not None and not 0 <= fill < float("inf"):
@@ -197,8 +197,6 @@ def _rank_tau_scale(text: str) -> float | None:
 def _add_rank_args(p: argparse.ArgumentParser) -> None:
     """``--rank-tau-scale``, ``--rank-residual`` (how recognition ranks) and ``--local-scaling``
     (the locally scaled EER beside it), for ``pairwise`` and ``reproduce``."""
-    from .experiments.recognition import LOCAL_SCALING_K
-    from .gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
 
     p.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
                    help=f"heat-kernel diffusion: the trimmed ranking measures each correspondence "
@@ -219,7 +217,6 @@ def _add_rank_args(p: argparse.ArgumentParser) -> None:
 def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None) -> None:
     """``--tau``, ``--units`` and ``--fill-holes`` (the diffusion metric's), for ``match``,
     ``distances`` and ``reproduce``; ``units_default``: the help's words for the default."""
-    from .metrics.diffusion import DEFAULT_UNITS, HEAT_UNITS
 
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.01 with "
@@ -905,7 +902,6 @@ def cmd_reproduce(args) -> int:
     import os
 
     from .experiments.datasets import data_root
-    from .experiments.recognition import LOCAL_SCALING_K
     from .experiments.report import PAPER, PAPER_CLASSES, other_classes
     from .experiments.reproduce import METRICS, RESULT_KEYS, check_dependencies, reproduce
 
@@ -1048,7 +1044,6 @@ def _index_parser(sub) -> None:
     _add_metric_args(q)
     q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
-    from .gh import RANK_TAU_SCALE
 
     q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
                    help=f"heat-kernel diffusion: also keep the heat distance at S times the diffusion "
@@ -1093,8 +1088,6 @@ def _pairwise_parser(sub) -> None:
 
 
 def _perturb_parser(sub) -> None:
-    from .perturb import WELD_JOINS
-
     q = sub.add_parser("perturb", help="topological noise: weld close parts, or punch holes")
     q.add_argument("kind", choices=("weld", "holes"))
     q.add_argument("input")
@@ -1122,8 +1115,6 @@ def _perturb_parser(sub) -> None:
 
 
 def _reproduce_parser(sub) -> None:
-    from .perturb import WELD_JOINS
-
     q = sub.add_parser("reproduce", help="the paper's experiments, results.json and an HTML report")
     q.add_argument("--data", nargs="?", const="", default=None, metavar="DIR",
                    help="directory with tosca/ (and topkids/); '--data' alone: $GROMOV_DATA. "

@@ -41,7 +41,7 @@ __all__ = ["ShapeMetric", "MatchResult", "match", "SearchOptions"]
 
 logger = logging.getLogger(__name__)
 
-DEFAULT_RESOLUTION = 3000
+from ._defaults import DEFAULT_RESOLUTION  # noqa: E402
 #: ``match(..., orientation="prefer")`` keeps an orientation-preserving correspondence when its
 #: distortion is at most this much (relative) above the best one found.
 ORIENTATION_TOL = 0.1
@@ -63,7 +63,7 @@ FLIP_TOL = 0.25
 #: in six readings of seven, e.g. synthetic welds 0.988 -> 1.427 (``.venv/bin/python
 #: benchmarks/bench_rank_residual.py``, "difference @1" against "@0.5"; see
 #: docs/design/recognition.md).
-RANK_TAU_SCALE = 0.5
+from ._defaults import RANK_TAU_SCALE  # noqa: E402
 #: How recognition summarises the residuals of a correspondence (see
 #: :func:`gromov.experiments.gh_matrix`'s ``rank_residual``): ``"log"``, the trimmed RMS of the log ratios of corresponding distances
 #: (:func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), or
@@ -71,8 +71,8 @@ RANK_TAU_SCALE = 0.5
 #: Chosen on the validation sets: the diffusion margin is larger in seven readings of eight and
 #: equal in the eighth (``.venv/bin/python benchmarks/bench_rank_residual.py``; see
 #: docs/design/recognition.md).
-RANK_RESIDUAL = "log"
-RANK_RESIDUALS = ("difference", "log")
+from ._defaults import RANK_RESIDUAL  # noqa: E402
+from ._defaults import RANK_RESIDUALS  # noqa: E402
 #: The floor of :func:`gromov.gmds.log_ratio_residuals` in recognition, a fraction of the larger
 #: diameter: keeps the ratio finite where two points coincide (0.01-0.1 changed no validation
 #: margin by more than 3%).

@@ -1643,11 +1643,11 @@ def _write_meshio(shape: PointCloud, path: Path, gz: bool, ext: str) -> None:
 #: read stops, having decompressed no more than the limit, with a
 #: :class:`~gromov.errors.MeshFormatError`; ``load(..., max_decompressed=)`` and the CLI's
 #: ``--max-decompressed`` set another limit.
-GZIP_RATIO = 100
+from ._defaults import GZIP_RATIO  # noqa: E402
 #: Files that decompress to at most this many bytes (16 MiB) are read whatever their ratio:
 #: small files of repeated lines compress more than 100 times (100,000 points at the origin
 #: saved as ``.xyz.gz``: 500 times), and parsing 16 MiB costs at most a few seconds.
-GZIP_FLOOR = 16 * 2**20
+from ._defaults import GZIP_FLOOR  # noqa: E402
 _MAX_DECOMPRESSED: contextvars.ContextVar[int | None] = contextvars.ContextVar(
     "gromov_max_decompressed", default=None)
 _GZIP_CHUNK = 16 * 2**20

@@ -39,7 +39,7 @@ __all__ = ["Perturbation", "weld", "holes", "WELD_JOINS", "WELD_RESOLUTION"]
 
 logger = logging.getLogger(__name__)
 
-WELD_JOINS = ("tube", "pinch")
+from ._defaults import WELD_JOINS  # noqa: E402
 #: :func:`weld` searches its sites on a copy of at most this many vertices: the candidate
 #: pairs of a 28k-vertex TOSCA cat at 5 edge lengths take minutes and gigabytes on the mesh
 #: itself, about a second on the copy (docs/design/perturbations.md).

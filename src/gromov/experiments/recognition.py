@@ -42,7 +42,7 @@ logger = logging.getLogger(__name__)
 #: docs/design/recognition.md).
 #: In those sets the smallest class of Experiment 1 has 5 shapes: k = 4 is that less one, and
 #: k >= 5 (scales from other classes) was worse. Keep k below your smallest class.
-LOCAL_SCALING_K = 4
+from .._defaults import LOCAL_SCALING_K  # noqa: E402
 
 #: Above this many shapes, :func:`mds_map` uses an iterative eigensolver (seeded).
 _DENSE_MAX = 1000

@@ -41,7 +41,7 @@ METRICS = ("geodesic", "diffusion", "euclidean")
 
 #: Default ``fill_holes`` of the diffusion metric: boundary loops shorter than this times
 #: the square root of the mesh's area are closed before the metric is computed.
-DIFFUSION_FILL_HOLES = 0.5
+from .._defaults import DIFFUSION_FILL_HOLES  # noqa: E402
 
 
 def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:

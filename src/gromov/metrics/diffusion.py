@@ -83,7 +83,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 DIFFUSION_KERNELS = ("connectivity", "gaussian", "heat", "biharmonic")
-HEAT_UNITS = ("normalized", "raw", "length")
+from .._defaults import HEAT_UNITS  # noqa: E402
 #: Neighbours of each point in the robust point-cloud Laplacian (``robust_laplacian``'s
 #: ``n_neighbors``; its own default is 30). Chosen on held-out TOSCA classes (cls0 -> clsN
 #: matched as clouds of their vertices: wolf 1, 2, horse 5, 6, centaur 1, 5, michael 1, 6):
@@ -98,7 +98,7 @@ DEFAULT_TAU = {"normalized": 0.01, "raw": 0.005, "length": 0.005}
 #: Default ``units`` of :class:`HeatDiffusionSolver`, and of recognition (GH distance
 #: matrices: :func:`gromov.experiments.pairwise.gh_matrix`, ``gromov pairwise``,
 #: ``gromov reproduce``'s EERs).
-DEFAULT_UNITS = "raw"
+from .._defaults import DEFAULT_UNITS  # noqa: E402
 #: ``units`` of the heat kernel when the task is a *correspondence* (:func:`gromov.match`,
 #: ``gromov match``, :func:`gromov.experiments.pairwise.match_pairs`, ``gromov reproduce``'s
 #: d(C, C0) table and TOPKIDS) and the options name neither ``units`` nor ``tau``
