@@ -44,3 +44,30 @@ def test_import_and_help_load_no_heavy_module():
     import gromov
 
     assert gromov.match.__module__ == "gromov.gh" and "match" in dir(gromov)
+
+
+def test_long_steps_say_what_they_do_on_a_terminal(tmp_path, capsys, monkeypatch):
+    """``gromov info`` / ``distances`` / ``match`` print a status line per long step on a
+    terminal, none with ``-q`` or when stderr is captured by a script."""
+    import sys
+
+    import gromov
+    from gromov.cli import main
+    from gromov.shapes import icosphere
+
+    src = tmp_path / "s.off"
+    gromov.save(icosphere(2), src)
+    assert main(["info", str(src)]) == 0
+    assert capsys.readouterr().err == ""                       # not a terminal: silent
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["info", str(src)]) == 0
+    assert "gromov: geodesic diameter of 162 vertices" in capsys.readouterr().err
+    assert main(["info", str(src), "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    out = tmp_path / "d.npz"
+    assert main(["distances", str(src), "--out", str(out), "--metric", "geodesic"]) == 0
+    err = capsys.readouterr().err
+    assert "gromov: working shape of 162 vertices" in err and "geodesic metric on 162" in err
+    assert main(["match", str(src), str(src), "--samples", "10", "--metric", "geodesic"]) == 0
+    err = capsys.readouterr().err
+    assert f"gromov: geodesic metric of {src}" in err and "gromov: matching 10 samples" in err

@@ -299,9 +299,13 @@ def test_weld_default_radius_grows_until_the_sites_fit():
         weld(sheet, 1, seed=0, radius=5 * sheet.mean_edge_length)   # a given radius is kept
 
 
-def test_cli_weld_options(tmp_path, capsys):
+def test_cli_weld_options(tmp_path, capsys, monkeypatch):
+    import sys
+
     import gromov
     from gromov.cli import main
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)   # status lines go to a terminal
 
     src = tmp_path / "hairpin.off"
     gromov.save(hairpin(121, 21), src)

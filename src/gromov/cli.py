@@ -289,6 +289,13 @@ def _progress(total: int, desc: str, quiet: bool):
 
 
 # ----------------------------------------------------------------------------- commands
+def _status(args, text: str) -> None:
+    """One status line on stderr for a step that can take seconds: on a terminal (like the
+    progress bars, never mixed into a script's captured output), unless ``-q``."""
+    if not getattr(args, "quiet", False) and sys.stderr.isatty():
+        print(f"gromov: {text}", file=sys.stderr, flush=True)
+
+
 def cmd_info(args) -> int:
     from .mesh import Mesh
     from .metrics import GeodesicSolver
@@ -300,6 +307,7 @@ def cmd_info(args) -> int:
                 "bbox_min": lo.tolist(), "bbox_max": hi.tolist()}
     else:
         info = {"file": args.mesh, "type": "triangle mesh", **shape.summary()}
+        _status(args, f"geodesic diameter of {shape.n_vertices} vertices (fast marching)")
         t = time.perf_counter()
         info["geodesic_diameter"] = GeodesicSolver(shape).diameter()
         info["diameter_seconds"] = round(time.perf_counter() - t, 3)
@@ -324,6 +332,7 @@ def cmd_distances(args) -> int:
     shape = _load(args.mesh, args)
     _check_neighbors(args, [shape])
     t0 = time.perf_counter()
+    _status(args, f"working shape of {shape.n_vertices} vertices (--resolution {args.resolution})")
     work = working_shape(shape, args.resolution)   # a point cloud's: farthest points in space
     target, to_input = work.mesh, work.to_input_ids
     if args.samples is None:
@@ -332,6 +341,7 @@ def cmd_distances(args) -> int:
         raise _UserError(f"--samples {args.samples} is more than the {target.n_vertices} vertices "
                          f"of the working mesh of {args.mesh}")
     solver = metric_solver(target, args.metric, **_metric_options(args))
+    _status(args, f"{args.metric} metric on {target.n_vertices} working vertices")
     if args.samples is None:
         idx = np.arange(target.n_vertices)
         with _progress(target.n_vertices, f"{args.metric} distances", args.quiet) as bar:
@@ -417,10 +427,9 @@ def cmd_match(args) -> int:
             import matplotlib  # noqa: F401
         except ImportError:
             raise _UserError("--plot needs matplotlib: pip install 'gromov[plot]'") from None
-    with _progress(2, "metrics", args.quiet or args.json) as bar:
-        for s in shapes:
-            s.distances
-            bar.update(1)
+    for path, s in zip((args.x, args.y), shapes):
+        _status(args, f"{args.metric} metric of {path} ({s.mesh.n_vertices} working vertices)")
+        s.distances
     for path, s in zip((args.x, args.y), shapes):
         if not s.finite:   # a point cloud whose neighbour graph falls apart
             raise _UserError(f"{path}: some of its points are infinitely far apart in the {args.metric} "
@@ -429,6 +438,7 @@ def cmd_match(args) -> int:
                              f"diffusion measures across the pieces")
     search = SearchOptions(search_vertices=args.search_vertices,
                            **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
+    _status(args, f"matching {args.samples} samples" + (", then the dense maps" if dense else ""))
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
               solver=args.solver, seed=args.seed, orientation=args.orientation, dense=dense, search=search)
     if args.out:
@@ -835,11 +845,10 @@ def cmd_perturb(args) -> int:
                                    ("separation", args.separation)) if v is not None}
         if args.resolution is not None:
             extra["resolution"] = None if args.resolution == 0 else args.resolution
-    if not args.quiet:
-        where = extra.get("resolution", WELD_RESOLUTION) if args.kind == "weld" else None
-        copy = (f" (sites searched on a {where}-vertex copy)" if where is not None
-                and shape.n_vertices > where else "")
-        print(f"gromov: {args.kind} x{args.count} on {shape.n_vertices} vertices{copy}", file=sys.stderr)
+    where = extra.get("resolution", WELD_RESOLUTION) if args.kind == "weld" else None
+    copy = (f" (sites searched on a {where}-vertex copy)" if where is not None
+            and shape.n_vertices > where else "")
+    _status(args, f"{args.kind} x{args.count} on {shape.n_vertices} vertices{copy}")
     p = fn(shape, args.count, radius=args.radius, seed=args.seed, **extra)
     out = Path(args.output)
     if out.parent and not out.parent.exists():
@@ -968,6 +977,7 @@ def _info_parser(sub) -> None:
     q = sub.add_parser("info", help="counts, topology, diameter and bounding box of a mesh")
     q.add_argument("mesh", help="OFF, OBJ, PLY, STL, MAT, TOSCA .vert/.tri, XYZ point clouds (optionally "
                                 ".gz); VTK, VTU, Gmsh, Medit with gromov[formats]")
+    q.add_argument("-q", "--quiet", action="store_true", help="no status line")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     _add_input_args(q)
     q.set_defaults(func=cmd_info)
