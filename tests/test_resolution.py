@@ -94,7 +94,7 @@ def test_tosca_poses_simplify_identically(data_dir, tosca_cat0, cat_working):
 def test_each_input_vertex_is_owned_by_a_working_vertex(cat_working):
     """Every input vertex was collapsed into one working vertex (working vertices own
     themselves), is located on a face around that owner or its neighbours, and its nearest
-    working vertex lies within a few edges of the owner along the surface."""
+    working vertex lies within a few edges of that one along the surface."""
     import scipy.sparse.csgraph as cg
 
     w = cat_working
@@ -130,8 +130,8 @@ def test_located_vertices_stay_on_their_own_sheet():
 
 
 def test_projection_matches_brute_force_among_its_candidates(tosca_cat0, cat_working):
-    """The located point is the closest point of the faces around the owner and its
-    neighbours (checked against every one of those faces), and face + coordinates rebuild it."""
+    """The located point is the closest point of the faces around the working vertex it was
+    collapsed into and its neighbours (checked against every one of those faces), and face + coordinates rebuild it."""
     from gromov._project import closest_point_barycentric
 
     w = cat_working

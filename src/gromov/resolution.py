@@ -79,9 +79,9 @@ class WorkingMesh(_WorkingMaps):
     source_owner : ndarray, shape (n_source,)
         Working vertex each source vertex was collapsed into (a working vertex owns itself).
         Each source vertex is located (``source_face``, ``source_bary``) at the closest point
-        of the faces around its owner and the owner's neighbours: on its own part of the
+        of the faces around that working vertex and its neighbours: on its own part of the
         surface, never on another sheet that passes closer in space (a hand resting on a
-        thigh). The owners do not depend on the pose, so :meth:`transfer` keeps them.
+        thigh). These do not depend on the pose, so :meth:`transfer` keeps them.
     """
 
     mesh: Mesh
