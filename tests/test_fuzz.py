@@ -288,18 +288,10 @@ def _hostile(shape: PointCloud, kind: str, folder: Path, draw, gz: str) -> tuple
     return path, tuple(str(p) for p in folder.iterdir())
 
 
-@examples(40)
-@given(shape=shapes(), kind=st.sampled_from(TEXT_KINDS), data=st.data())
-def test_hostile_text_files_are_read_or_refused_cleanly(shape, kind, data):
-    shape = fit(shape, kind)
-    with tempfile.TemporaryDirectory() as tmp:
-        path, others = _hostile(shape, kind, Path(tmp), data.draw, gz="")
-        load_or_refuse(path, *others)
-
-
-@examples(30)
-@given(shape=shapes(), kind=st.sampled_from(BINARY_KINDS), data=st.data())
-def test_hostile_binary_files_are_read_or_refused_cleanly(shape, kind, data):
+@examples(70)
+@given(shape=shapes(), kind=st.sampled_from(list(TEXT_KINDS) + list(BINARY_KINDS)), data=st.data())
+def test_hostile_files_are_read_or_refused_cleanly(shape, kind, data):
+    """Text and binary formats alike."""
     shape = fit(shape, kind)
     with tempfile.TemporaryDirectory() as tmp:
         path, others = _hostile(shape, kind, Path(tmp), data.draw, gz="")
