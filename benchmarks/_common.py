@@ -1,6 +1,6 @@
 """What the diagnostic benchmarks share: the data option, the default diffusion metric spelled
-out, residual summaries and the results file. Scripts run as ``python benchmarks/NAME.py``
-find this module beside them."""
+out, residual summaries and the results file (with the machine it was made on). Scripts run as
+``python benchmarks/NAME.py`` find this module beside them."""
 
 from __future__ import annotations
 
@@ -44,7 +44,12 @@ def margin(D: np.ndarray, labels: np.ndarray) -> float:
 
 
 def write_results(path: str | None, payload: dict) -> None:
-    """Write ``payload`` with today's date as the JSON results file ``path`` (nothing if None)."""
+    """Write ``payload`` with today's date and the machine (CPU model, BLAS:
+    :func:`gromov.experiments.reproduce.environment`) as the JSON results file ``path``
+    (nothing if None)."""
     if path:
+        from gromov.experiments.reproduce import environment
+
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), **payload}, indent=1))
+        Path(path).write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "environment": environment(),
+                                          **payload}, indent=1))

@@ -754,7 +754,9 @@ def _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete):
 
     starts = _Starts(sx, sy, P, Q, search)
     pairs = starts.plain(all_starts=False)
-    img_p0, img_q0 = pairs[int(np.argmin([score(a, b) for a, b in pairs]))]
+    from ._arrays import argmin_stable
+
+    img_p0, img_q0 = pairs[argmin_stable([score(a, b) for a, b in pairs])]
     return starts, img_p0, img_q0
 
 
@@ -778,6 +780,8 @@ def _prefer_direct(sx, sy, P, Q, gm, starts, fit: _Fit, n_samples: int, seed: in
     reflection of X or Y (:meth:`ShapeMetric.symmetry`, within ``FLIP_TOL``). A clearly direct
     map (agreement above 1/2 + ``DIRECT_MARGIN``) is taken at once; one direct only on part of
     the shapes (agreement near 1/2) only if no clearly direct one turns up. ``fit`` if none."""
+    from ._arrays import argmin_stable
+
     pairs = starts.plain(all_starts=True) + starts.preserving(-(-starts.fwd.per_stage // 2))
     at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
     keep = pairs_orientation(sx, sy, P, Q, at) > 0.5
@@ -794,7 +798,7 @@ def _prefer_direct(sx, sy, P, Q, gm, starts, fit: _Fit, n_samples: int, seed: in
     found = partial = None
     if keep.any():  # the best orientation-preserving start
         scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
-        alt = attempt(at[int(np.flatnonzero(keep)[np.argmin(scores[keep])])], ORIENTATION_TOL)
+        alt = attempt(at[int(np.flatnonzero(keep)[argmin_stable(scores[keep])])], ORIENTATION_TOL)
         if alt is not None and alt.orientation > 0.5 + DIRECT_MARGIN:
             found = alt
         else:

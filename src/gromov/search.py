@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import _gmds_kernel as _kernel
+from ._arrays import argmin_stable, argsort_stable
 from .gmds import SurfacePoints, SymmetricGMDS
 from .orientation import orientation_agreements
 
@@ -201,7 +202,7 @@ def _trimmed_descent(dx, DY, img, keep: float, rounds: int, R, C):
     for _ in range(rounds):
         e = dx - DY[np.ix_(img, img)]
         np.fill_diagonal(e, 0.0)
-        order = np.argsort((e**2).sum(axis=1), kind="stable")
+        order = argsort_stable((e**2).sum(axis=1))
         t, u = np.sort(order[:h]), np.sort(order[h:])
         new_t, _ = _kernel.place_and_descend_blas(np.ascontiguousarray(dx[np.ix_(t, t)]), DY, img[t],
                                                   20, R[:h], C[:h])
@@ -233,7 +234,9 @@ class _Search:
         else:
             self.dom, work = None, np.ascontiguousarray(DY, dtype=np.float64)
         self.work = work
-        self.coarse = []  # per stage: (cost, images as a tuple of ids of ``work``), sorted
+        # per stage: (cost, images as a tuple of ids of ``work``), from the lowest cost, costs
+        # equal within TIE_RTOL in candidate order (a tie that rounding cannot flip)
+        self.coarse = []
         runs = [(c, vertices, False) for c, vertices in stages]
         if signature_costs is not None:  # each stage again, with the signatures' costs
             if self.dom is not None:
@@ -252,7 +255,8 @@ class _Search:
                 imgs = dom[imgs]
             else:
                 imgs, costs = _kernel.coarse_starts(head, work, candidates[:k], 20, U)
-            self.coarse.append(sorted((float(f), tuple(img)) for f, img in zip(costs, imgs.tolist())))
+            imgs = imgs.tolist()
+            self.coarse.append([(float(costs[k]), tuple(imgs[k])) for k in argsort_stable(costs)])
         self.per_stage = -(-int(n_extend) // len(self.coarse))  # evenly, rounded up
         self.seen: set = set()
         self._R = self._C = self._plain = self._full = None
@@ -305,7 +309,7 @@ class _Search:
             self._plain = self._extend(todo, polish=False)
         every = self._plain
         costs = [cost for _, cost in every]
-        best = int(np.argmin(costs))  # the first of the lowest cost
+        best = argmin_stable(costs)  # the first of the lowest cost (within TIE_RTOL)
         if self.dom is not None:
             every = ([self.polish(img) for img, _ in every] if polish_all else
                      [self.polish(img) if k == best else (self.dom[img], cost)
@@ -372,13 +376,13 @@ def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.nd
     """
     At = DX[P]                                               # (M, n_X) = DX[:, P].T
     cost = (At * At).sum(0)[None, :] - 2.0 * (DY_rows @ At)  # + |d|^2, constant per row
-    return np.argmin(cost, axis=1).astype(np.int64)
+    return argmin_stable(cost, axis=1)
 
 
 def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndarray:
     """The ``k`` vertices of ``target`` with the closest signatures, at least 5% of the diameter apart."""
     cost = np.abs(target.descriptors - signature).sum(axis=1)
-    order = np.argsort(cost, kind="stable")
+    order = argsort_stable(cost)
     radius = 0.05 * target.diameter
     D = target.distances
     free = np.ones(len(order), dtype=bool)  # free[i]: order[i] is farther than radius from all chosen
@@ -479,7 +483,7 @@ def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray 
         return None
     gm = SymmetricGMDS(s.surface, s.surface, P, P)
     scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
-    img_p, img_q, _, _ = gm.solve(*at[int(np.flatnonzero(flips)[np.argmin(scores[flips])])])
+    img_p, img_q, _, _ = gm.solve(*at[int(np.flatnonzero(flips)[argmin_stable(scores[flips])])])
     D = s.distances
     for _ in range(INVOLUTION_REPAIRS):
         # a reflection is its own inverse: both halves of the self-map must agree. Where

@@ -61,7 +61,8 @@ from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
 from .recognition import (LOCAL_SCALING_K, errors_at, local_roc, mds_map, plot_mds, plot_roc, roc,
                           smallest_class)
 
-__all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "METRICS", "RESULT_KEYS", "RANK_BY"]
+__all__ = ["Settings", "settings_for", "reproduce", "reflection_map", "environment", "METRICS", "RESULT_KEYS",
+           "RANK_BY"]
 
 logger = logging.getLogger(__name__)
 
@@ -426,6 +427,53 @@ def _versions() -> dict:
         except metadata.PackageNotFoundError:
             out[dist] = None
     return out
+
+
+def environment() -> dict:
+    """The machine a run's floating point depends on, recorded beside the versions.
+
+    Bit-identical results hold on one machine for one seed; across machines the CPU's
+    kernels (the BLAS's for its architecture, numba's for its instruction set) sum in other
+    orders and results agree to a tolerance (docs/design/reproduction.md, "What is
+    reproducible").
+
+    Returns
+    -------
+    dict
+        ``cpu`` (the model name, None where unknown), ``machine`` (``platform.machine()``),
+        ``cpus`` (the CPUs this process may use), ``numba_cpu`` (the CPU numba compiles for)
+        and ``blas``: one entry per BLAS or OpenMP library loaded (threadpoolctl's
+        ``threadpool_info()``: ``user_api``, ``internal_api``, ``version``, ``architecture``,
+        ``threading_layer``, ``num_threads`` and the library's file name, without its folder).
+    """
+    from threadpoolctl import threadpool_info
+
+    blas = [{**{k: info.get(k) for k in ("user_api", "internal_api", "version", "architecture",
+                                          "threading_layer", "num_threads")},
+             "file": Path(info["filepath"]).name if info.get("filepath") else None}
+            for info in threadpool_info()]
+    try:
+        from llvmlite import binding
+        from numba.core import config
+
+        numba_cpu = config.CPU_NAME or binding.get_host_cpu_name()
+    except ImportError:  # pragma: no cover - numba is a dependency
+        numba_cpu = None
+    return {"cpu": _cpu_model(), "machine": platform.machine(), "cpus": available_cpus(),
+            "numba_cpu": numba_cpu, "blas": blas}
+
+
+def _cpu_model() -> str | None:
+    """The CPU's model name: /proc/cpuinfo's ``model name`` (Linux), else
+    ``platform.processor()``; None where neither says."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or None
 
 
 def _say(msg: str, quiet: bool) -> None:
@@ -1018,6 +1066,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
             "seeds": {"sampling": seed, "perturbations": {s.label: s.info.get("seed") for s in shapes.shapes.values()
                                                           if "seed" in s.info}},
             "versions": _versions(),
+            "environment": environment(),
             "figures": figures,
         }
         for key in RESULT_KEYS:
