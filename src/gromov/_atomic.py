@@ -10,9 +10,13 @@ file.
 Temporary files are named ``.NAME.XXXXXXXX.tmpSUFFIX`` (``full.npz`` ->
 ``.full.3f9a0c1e.tmp.npz``): hidden, recognisable, and ending in the target's suffix for the
 writers that look at it (:func:`numpy.savez` appends ``.npz`` to a name without it, matplotlib
-picks the image format from it). A process killed by a signal that cannot be caught (SIGKILL,
-a power cut) can leave such a file behind; it is never mistaken for the target and may be
-deleted. Any exception, :class:`KeyboardInterrupt` included, removes it.
+picks the image format from it). Any exception, :class:`KeyboardInterrupt` included, removes
+it. A process killed by a signal that cannot be caught (SIGKILL, a power cut) leaves it behind;
+it is never mistaken for the target, and the next write of the same target deletes it: a writer
+holds an advisory lock (:func:`fcntl.flock`) on its temporary file or folder for as long as it
+writes, the system releases the lock when the process ends however it ends, and a temporary of
+the target's name pattern that nobody holds is stale. Where there is no ``flock`` (Windows) or
+the file system cannot lock, temporaries left by killed processes stay until deleted by hand.
 """
 
 from __future__ import annotations
@@ -22,11 +26,17 @@ import ctypes
 import ctypes.util
 import errno
 import os
+import re
 import secrets
 import shutil
 import stat
 from collections.abc import Iterator
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:   # Windows
+    fcntl = None
 
 __all__ = ["atomic_folder", "atomic_path", "atomic_savez_compressed", "atomic_write_bytes",
            "atomic_write_text"]
@@ -38,10 +48,142 @@ def _target(path) -> Path:
     return Path(os.path.realpath(p)) if p.is_symlink() else p
 
 
-def _temp_name(target: Path, tag: str = "tmp") -> Path:
+def _stem_suffix(target: Path) -> tuple[str, str]:
     suffix = target.suffix if target.stem else ""
-    stem = target.name[:len(target.name) - len(suffix)] if suffix else target.name
+    return (target.name[:len(target.name) - len(suffix)] if suffix else target.name), suffix
+
+
+def _temp_name(target: Path, tag: str = "tmp") -> Path:
+    stem, suffix = _stem_suffix(target)
     return target.with_name(f".{stem}.{secrets.token_hex(4)}.{tag}{suffix}")
+
+
+# --------------------------------------------------------------------------- stale temporaries
+def _try_lock(fd: int) -> bool | None:
+    """Take the exclusive advisory lock of ``fd`` without waiting: True if taken, False if
+    another open file holds it, None where the system or the file system cannot lock."""
+    if fcntl is None:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError:
+        return None
+    return True
+
+
+def _same_file(path: Path, fd: int) -> bool:
+    """Whether ``path`` is still the file or folder open as ``fd``."""
+    try:
+        a, b = os.lstat(path), os.fstat(fd)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+_HELD: set[int] = set()
+"""Descriptors holding the locks of this process's temporaries."""
+
+
+def _release(fd: int | None) -> None:
+    """Close a lock's descriptor (releasing the lock), if this process holds it."""
+    if fd is not None and fd in _HELD:
+        _HELD.discard(fd)
+        os.close(fd)
+
+
+def _forget_in_child() -> None:
+    """After ``fork``: close the child's copies of the lock descriptors, so the lock is the
+    writer's alone and a killed writer's temporaries are stale even while workers it forked
+    live on (a lock is released when every descriptor sharing it is closed)."""
+    for fd in _HELD:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_in_child)
+
+
+def _claim(path: Path, fd: int | None = None) -> tuple[bool, int | None]:
+    """Lock the temporary ``path`` this process has just created (``fd``: open on it).
+
+    Returns ``(kept, fd)``: ``fd`` holds the lock until closed (None where locks are not
+    available); ``kept`` is False when a cleaner of stale temporaries took ``path`` in the
+    moment between its creation and the lock (it deletes it; the writer picks another name).
+    """
+    if fd is None:
+        if fcntl is None:
+            return True, None
+        try:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        except FileNotFoundError:
+            return False, None
+        except OSError:
+            return True, None
+    locked = _try_lock(fd)
+    if locked is None:
+        os.close(fd)
+        return True, None
+    if locked and _same_file(path, fd):
+        _HELD.add(fd)
+        return True, fd
+    os.close(fd)
+    return False, None
+
+
+def _open_to_lock(path: Path, *, folder: bool) -> int | None:
+    """Open ``path`` (not following a symlink) to take its lock; None if it cannot be.
+
+    A file is opened for writing where it may be (NFS takes an exclusive ``flock`` only on
+    such files), else for reading (a temporary given the mode of a read-only target)."""
+    for mode in ([os.O_RDONLY | os.O_DIRECTORY] if folder else [os.O_RDWR, os.O_RDONLY]):
+        try:
+            return os.open(path, os.O_NOFOLLOW | mode)
+        except PermissionError:
+            continue
+        except OSError:
+            return None
+    return None
+
+
+def _remove_stale(target: Path, *, folder: bool) -> None:
+    """Delete the temporaries of ``target`` (:func:`_temp_name`) that no writer holds.
+
+    A temporary's writer holds its lock until it is done; the system releases it when the
+    writer ends, however it ends (SIGKILL included), so an unheld temporary is one a killed
+    writer left. Temporaries held by a running writer, other names and anything that cannot
+    be locked (see :func:`_try_lock`) are left alone; errors are ignored.
+    """
+    if fcntl is None:
+        return
+    stem, suffix = _stem_suffix(target)
+    pattern = re.compile(re.escape(f".{stem}.") + "[0-9a-f]{8}" + re.escape(f".tmp{suffix}"))
+    parent = target.parent
+    try:
+        with os.scandir(parent) as it:
+            names = [e.name for e in it if pattern.fullmatch(e.name)]
+    except OSError:
+        return
+    for name in names:
+        path = parent / name
+        fd = _open_to_lock(path, folder=folder)
+        if fd is None:
+            continue
+        try:
+            if (stat.S_ISDIR(os.fstat(fd).st_mode) != folder or _try_lock(fd) is not True
+                    or not _same_file(path, fd)):
+                continue
+            if folder:
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                os.unlink(path)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
 
 
 def _fsync_path(path: Path, *, folder: bool = False) -> None:
@@ -109,15 +251,22 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     if st is not None and not stat.S_ISREG(st.st_mode):
         yield target    # a device or pipe: nothing to replace
         return
+    _remove_stale(target, folder=False)
     while True:
         tmp = _temp_name(target)
         try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-            break
+            fd = os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o666)
         except FileExistsError:
             continue
         except OSError as exc:
             raise _as_target_error(exc, target) from None
+        if fcntl is None:   # Windows renames no file open here: no lock, nothing held open
+            os.close(fd)
+            lock = None
+            break
+        kept, lock = _claim(tmp, fd)
+        if kept:
+            break
     try:
         yield tmp
         if st is not None:
@@ -128,7 +277,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
-    _fsync_path(target.parent if str(target.parent) else Path("."), folder=True)
+    finally:
+        _release(lock)
+    _fsync_path(target.parent, folder=True)
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
@@ -204,17 +355,23 @@ def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
     (``renameat2(RENAME_EXCHANGE)``), elsewhere the old folder is first renamed aside to
     ``.NAME.XXXXXXXX.old`` -- a crash in between leaves no ``path`` but both complete folders
     under those names. The old folder is then deleted. On any exception the temporary folder
-    is deleted and ``path`` is untouched.
+    is deleted and ``path`` is untouched. A writer killed by SIGKILL leaves its temporary
+    folder (on Linux, after the exchange, the old folder being deleted under that name); the
+    next write of ``path`` deletes it (see :mod:`gromov._atomic`). A ``.old`` folder is left
+    for the user.
     """
     target = _target(path)
     target.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale(target, folder=True)
     while True:
         tmp = _temp_name(target)
         try:
             os.mkdir(tmp, 0o777)
-            break
         except FileExistsError:
             continue
+        kept, lock = _claim(tmp)
+        if kept:
+            break
     try:
         yield tmp
         for root, _, files in os.walk(tmp):
@@ -234,7 +391,9 @@ def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
             os.rename(tmp, target)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        _release(lock)
         raise
     _fsync_path(target.parent, folder=True)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+    _release(lock)
