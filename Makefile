@@ -11,7 +11,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e ".[test,bench,plot,ot,docs]"
+	$(BIN)/python -m pip install --quiet -e ".[test,bench,plot,ot,docs,dask]"
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -1,4 +1,4 @@
-"""Command-line interface: ``gromov info|distances|match|index|pairwise|perturb|reproduce|demo``.
+"""Command-line interface: ``gromov info|distances|match|index|search|pairwise|perturb|reproduce|demo``.
 
 Thin: parses arguments, calls the library, prints. User errors (unreadable file, bad
 option values, a metric that cannot be computed) print one line ``gromov: error: ...``
@@ -606,6 +606,36 @@ def cmd_index(args) -> int:
     return 0
 
 
+def cmd_search(args) -> int:
+    from .retrieval import nearest
+
+    if not (Path(args.store) / "catalogue.sqlite").is_file():
+        raise _UserError(f"no shape store in {args.store}: gromov index FILES --store {args.store} makes one")
+    options = _metric_options(args)
+    t = time.perf_counter()
+    store, handler = _open_store(args)
+    try:
+        r = nearest(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
+                    resolution=args.resolution, metric_options=options, rank_by=args.rank_by,
+                    rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual, prune=args.prune,
+                    slack=args.slack, progress=not (args.quiet or args.json))
+    finally:
+        _close_store(store, handler)
+    seconds = time.perf_counter() - t
+    if args.json:
+        print(_dumps({"query": args.query, "store": args.store, "k": args.k, **r.to_dict(),
+                      "seconds": seconds}))
+        return 0
+    n = r.full_matches + r.skipped
+    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+    print(f"{len(r.neighbors)} nearest of {n} shapes by {what}; {r.full_matches} matched, {r.skipped} "
+          f"skipped ({'exact' if r.exact else 'by the profile gap: not exact'}), {seconds:.1f} s")
+    width = max(len(x.name) for x in r.neighbors)
+    for i, x in enumerate(r.neighbors, 1):
+        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.4%}")
+    return 0
+
+
 def cmd_pairwise(args) -> int:
     from .experiments.pairwise import available_cpus, gh_matrix
     from .experiments.recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, roc
@@ -640,6 +670,13 @@ def cmd_pairwise(args) -> int:
             import matplotlib  # noqa: F401
         except ImportError:
             raise _UserError("--mds needs matplotlib: pip install 'gromov[plot]'") from None
+    dask = args.dask is not None or args.scheduler is not None
+    if dask:
+        import importlib.util
+
+        if importlib.util.find_spec("distributed") is None:
+            raise _UserError(f"{'--dask' if args.dask is not None else '--scheduler'} needs dask.distributed: "
+                             "pip install 'gromov[dask]'")
     t = time.perf_counter()
     store, handler = _open_store(args)
     try:
@@ -654,17 +691,32 @@ def cmd_pairwise(args) -> int:
                 _check_pieces(args, path, shape)   # simplification keeps the components
                 shapes.append(shape)
             _check_neighbors(args, shapes)
-            _check_memory([min(args.resolution, s.n_vertices) for s in shapes],
-                          f"--resolution {args.resolution}")
+            if not dask:   # (with Dask the matrices are on the workers)
+                _check_memory([min(args.resolution, s.n_vertices) for s in shapes],
+                              f"--resolution {args.resolution}")
             options = _metric_options(args)
             t = time.perf_counter()
+        elif dask:   # each worker reads its shapes from the store, or computes and adds them
+            options = _metric_options(args)
+            if getattr(args, "neighbors", None) is not None:
+                _check_neighbors(args, [_load(f, args) for f in args.files])
+            shapes = list(args.files)
         else:   # read from the store; loaded and computed only when not stored yet
             options = _metric_options(args)
             shapes = _stored_shapes(store, args, options, progress=not (args.quiet or args.json))
-        r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
-                      metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
-                      progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
-                      rank_residual=args.rank_residual, store=store)
+        if dask:
+            from ._dask import client_for
+
+            cluster = client_for(scheduler=args.scheduler, n_workers=args.dask)
+        else:
+            import contextlib
+
+            cluster = contextlib.nullcontext()
+        with cluster as client:
+            r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                          metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
+                          progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
+                          rank_residual=args.rank_residual, store=store, client=client)
     finally:
         _close_store(store, handler)
     seconds = time.perf_counter() - t
@@ -1061,6 +1113,49 @@ def _index_parser(sub) -> None:
     q.set_defaults(func=cmd_index)
 
 
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {v}")
+    return v
+
+
+def _search_parser(sub) -> None:
+    q = sub.add_parser("search", help="the shapes of a shape store nearest to a query, skipping the "
+                                      "pairs a per-shape bound rules out")
+    q.add_argument("query", help="a mesh or point cloud (left out of its own results if it is in the store)")
+    q.add_argument("--store", required=True, metavar="DIR", help="a shape store made by gromov index")
+    q.add_argument("-k", type=_positive_int, default=5, help="neighbours to return (default 5)")
+    _add_metric_args(q)
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count the store was indexed with (default {DEFAULT_RESOLUTION})")
+    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
+                   help="rank by the trimmed distortion of each pair's correspondence (default, as "
+                        "pairwise) or by the GH estimate")
+    q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
+                   help=f"heat-kernel diffusion: the trimmed ranking's heat distance at S times the "
+                        f"diffusion time (default {RANK_TAU_SCALE:g}, as pairwise and index)")
+    q.add_argument("--rank-residual", choices=RANK_RESIDUALS, default=RANK_RESIDUAL,
+                   help=f"log ratios or differences of corresponding distances (default {RANK_RESIDUAL})")
+    q.add_argument("--prune", choices=("profile", "bound", "none"), default="profile",
+                   help="skip the shapes whose lower bound or profile gap rules them out (profile: "
+                        "default; recall 1.0 on the validation sets, not guaranteed), only those "
+                        "whose lower bound does (bound: the same neighbours as matching every "
+                        "shape), or none")
+    q.add_argument("--slack", type=_positive_float, default=0.25, metavar="S",
+                   help="--prune profile: skip a shape when S times its profile gap exceeds the "
+                        "k-th distance found (default 0.25; larger skips more)")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_input_args(q)
+    q.set_defaults(func=cmd_search)
+
+
 def _pairwise_parser(sub) -> None:
     q = sub.add_parser("pairwise", help="Gromov-Hausdorff distances between all pairs of a set of "
                                         "shapes; nearest neighbours, EER and an MDS map")
@@ -1070,8 +1165,20 @@ def _pairwise_parser(sub) -> None:
     q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
     q.add_argument("--seed", type=int, default=0)
-    q.add_argument("--jobs", type=_positive_int, default=None,
-                   help="worker processes for the pairs (default: the CPUs available)")
+    workers = q.add_mutually_exclusive_group()
+    workers.add_argument("--jobs", type=_positive_int, default=None,
+                         help="worker processes for the pairs (default: the CPUs available); "
+                              "refused with --dask or --scheduler")
+    workers.add_argument("--dask", type=_positive_int, default=None, metavar="N",
+                         help="run on a Dask cluster of N worker processes of one thread each, "
+                              "started on this machine for this run: each worker computes (or reads "
+                              "from --store) its share of the shapes and keeps them, and each pair "
+                              "runs where its shapes are; the same results as --jobs "
+                              "(pip install 'gromov[dask]')")
+    workers.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                         help="run on the workers of the running Dask scheduler at ADDRESS (e.g. "
+                              "tcp://host:8786), as --dask does; they must see the files and --store "
+                              "at the same absolute paths")
     q.add_argument("--labels", default=None, metavar="L,L,...",
                    help="the class of each file, in order: adds the equal error rate and the "
                         "nearest-neighbour accuracy")
@@ -1174,6 +1281,7 @@ def build_parser() -> argparse.ArgumentParser:
     _distances_parser(sub)
     _match_parser(sub)
     _index_parser(sub)
+    _search_parser(sub)
     _pairwise_parser(sub)
     _perturb_parser(sub)
     _reproduce_parser(sub)

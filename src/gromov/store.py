@@ -9,7 +9,7 @@ interrupted run continues where it stopped (:func:`gromov.experiments.gh_matrix`
 
 Layout of a store folder::
 
-    catalogue.sqlite         tables entries, pairs, meta (WAL mode)
+    catalogue.sqlite         tables entries, pairs, extras, meta (WAL mode)
     entries/KEY-CHECKSUM.npz one per shape and options
 
 An entry's key is the SHA-256 of its source's content (a file's bytes, or a shape's arrays),
@@ -91,6 +91,13 @@ CREATE TABLE IF NOT EXISTS pairs (
     arrays BLOB NOT NULL,
     seconds REAL,
     created REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS extras (
+    entry TEXT NOT NULL,
+    name TEXT NOT NULL,
+    arrays BLOB NOT NULL,
+    created REAL NOT NULL,
+    PRIMARY KEY (entry, name)
 );
 """
 
@@ -597,6 +604,27 @@ class ShapeStore:
                        (key, x, y, _dumps(options), _version(), *(float(getattr(result, k)) for k in (
                            "distance", "relative_distance", "distortion_trimmed", "relative_trimmed",
                            "ranking_distance")), blob, float(result.seconds), time.time()))
+
+    # ------------------------------------------------------------------ extra per-entry arrays
+    def put_extra(self, key: str, name: str, arrays: dict) -> None:
+        """Keep named arrays derived from entry ``key`` (e.g. per-shape invariants,
+        :mod:`gromov.retrieval`) under ``name`` in the catalogue's ``extras`` table, replacing
+        what was there under that name."""
+        blob = _npz_bytes({k: np.asarray(v) for k, v in arrays.items()})
+        db = self._db()
+        with self._transaction(db):
+            db.execute("INSERT OR REPLACE INTO extras VALUES (?, ?, ?, ?)", (key, name, blob, time.time()))
+
+    def extra(self, key: str, name: str) -> dict | None:
+        """The arrays kept with :meth:`put_extra` for entry ``key`` under ``name``, or None
+        (none kept, or not readable)."""
+        row = self._db().execute("SELECT arrays FROM extras WHERE entry = ? AND name = ?", (key, name)).fetchone()
+        if row is None:
+            return None
+        try:
+            return _read_npz(row[0])
+        except Exception:   # noqa: BLE001 - unreadable: as if not kept
+            return None
 
 
 def _float(v) -> float:

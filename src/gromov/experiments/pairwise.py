@@ -3,11 +3,13 @@
 Each shape's working mesh and dense metric are computed once (:class:`gromov.ShapeMetric`),
 then every unordered pair is matched. Pairs run in worker processes that inherit the prepared
 shapes by ``fork`` (no copying of the distance matrices); with ``jobs=1`` everything runs in
-this process.
+this process; with a Dask ``client``, the workers prepare the shapes, keep them and run the pairs
+where their shapes are (:mod:`gromov._dask`).
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 import multiprocessing as mp
 import os
@@ -57,22 +59,30 @@ class PairwiseGH:
     trimmed: np.ndarray | None = None
     rank_tau_scale: float | None = None
     rank_residual: str = "difference"
+    skipped: int = 0
+    """Pairs not matched (``gh_matrix(k=...)``: they could not be among the k nearest); their
+    entries are NaN."""
 
 
 def _pair(ij):
     i, j = ij
-    x, y = _SHAPES[i], _SHAPES[j]
-    if not _MATRIX:
-        r = _match(x, y, x.metric, **_OPTIONS)
+    return _pair_of(_SHAPES[i], _SHAPES[j], ij, _OPTIONS, matrix=_MATRIX, keep=ij in _KEEP, record=_RECORD)
+
+
+def _pair_of(x: ShapeMetric, y: ShapeMetric, ij, options: dict, *, matrix: bool, keep: bool, record=None):
+    """``(distance, relative, trimmed, MatchResult or None)`` of one pair; ``record(ij, result)``
+    is given the matrix's result as soon as it is found."""
+    if not matrix:
+        r = _match(x, y, x.metric, **options)
         return r.distance, r.relative_distance, r.relative_trimmed, r
     # the GH estimate: the lowest distortion found, mirror images included
-    options = dict(_OPTIONS)
+    options = dict(options)
     orientation = options.pop("orientation", "prefer")
     r = _match(x, y, x.metric, orientation="ignore", as_prepared=True, **options)
-    if _RECORD is not None:
-        _RECORD(ij, r)
+    if record is not None:
+        record(ij, r)
     full = None
-    if (i, j) in _KEEP:
+    if keep:
         full = r
         # mirrored: the same run, then more (NaN -- a point cloud, a non-orientable mesh --
         # has no orientation to prefer, and "prefer" would give the same map)
@@ -266,7 +276,8 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
 def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolution: int | None = 3000,
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
               keep=(), known: dict | None = None, rank_tau_scale: float | None = RANK_TAU_SCALE,
-              rank_residual: str = RANK_RESIDUAL, store=None, **match_options) -> PairwiseGH:
+              rank_residual: str = RANK_RESIDUAL, store=None, client=None, k: int | None = None,
+              **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -278,7 +289,7 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         As in :func:`gromov.match`.
     jobs : int, default 1
         Worker processes for the pairs (fork start method; falls back to 1 where fork is
-        not available).
+        not available). Ignored with ``client``.
     progress : bool, default False
         Show a progress bar (tqdm) on stderr.
     keep : iterable of (int, int), optional
@@ -307,6 +318,20 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         gromov version) are not run again, so an interrupted run continues where it stopped
         and gives the same matrices. Pairs in ``keep`` are always run (their full
         ``MatchResult`` is not stored).
+    client : distributed.Client, optional
+        Run on the workers of a Dask cluster (``pip install 'gromov[dask]'``) instead of
+        local processes, with the same results bit for bit. Each shape is prepared (or read
+        from ``store``) on one worker and stays there; each pair runs on a worker that holds
+        one of its shapes, or both (:mod:`gromov._dask`); a task runs on one thread. Shapes
+        given as files are read by the workers, which must see them at the same absolute
+        path, as they must see ``store``'s folder; pair results are recorded in the store by
+        this process. The workers' shapes are released when the matrix is done.
+    k : int, optional
+        Only each shape's ``k`` nearest others (:func:`gromov.retrieval.knn_pairs`): the pairs
+        are taken in order of a per-shape estimate, and a pair that cannot enter the k nearest
+        of either of its shapes is not matched; its entries are NaN, and ``skipped`` counts
+        them. The pruning is :func:`gromov.retrieval.knn_pairs`' default (``prune="profile"``,
+        recall 1.0 on the validation sets: docs/guide/retrieval.md). Not with ``client``.
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``, ``search``...).
 
@@ -323,24 +348,15 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         measured as ``rank_tau_scale`` and ``rank_residual`` say.
     """
     shapes = list(shapes)
-    if len(shapes) < 2:
-        raise ValueError(f"need at least two shapes, got {len(shapes)}")
+    n = len(shapes)
+    if n < 2:
+        raise ValueError(f"need at least two shapes, got {n}")
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     check_rank_residual(rank_residual)
+    if k is not None and client is not None:
+        raise ValueError("k (nearest neighbours only) is not available with a Dask client")
     match_options = _upgrade_options(match_options, "gh_matrix")
-    t0 = time.perf_counter()
-    if store is not None:
-        from ..store import as_store
-
-        store = as_store(store)
-        shapes = store.shapes(shapes, metric, resolution=resolution, metric_options=metric_options,
-                              rank_tau_scale=rank_tau_scale, progress=progress)
-    prepared = prepare(shapes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
-                       metric_options=metric_options, progress=progress,
-                       subsets=_subsets(match_options), rank_tau_scale=rank_tau_scale)
-    t1 = time.perf_counter()
-    n = len(prepared)
     keep = frozenset((int(i), int(j)) for i, j in keep)
     bad = [ij for ij in keep if not 0 <= ij[0] < ij[1] < n]
     if bad:
@@ -354,53 +370,303 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         raise ValueError(f"known pairs in keep need their MatchResult, missing for {sorted(missing)[:3]}")
     options = dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale,
                    rank_residual=rank_residual, **match_options)
-    record = None
-    if store is not None:
-        known, record = _stored_pairs(store, prepared, known, keep, options)
-    pairs = [(i, j) for i in range(n) for j in range(i + 1, n) if (i, j) not in known]
-    dist = np.zeros((n, n))
-    rel = np.zeros((n, n))
-    trim = np.zeros((n, n))
+    per_shape = {"n_samples": n_samples, "seed": seed, "resolution": resolution, "metric_options": metric_options,
+                 "subsets": _subsets(match_options), "rank_tau_scale": rank_tau_scale}
+    fill = 0.0 if k is None else np.nan   # with k: NaN where a pair was not matched
+    dist = np.full((n, n), fill)
+    rel = np.full((n, n), fill)
+    trim = np.full((n, n), fill)
+    for a in (dist, rel, trim):
+        np.fill_diagonal(a, 0.0)
     kept = {}
-    global _RECORD
-    _RECORD = record
-    try:
-        runs = _run(prepared, pairs, keep, jobs, progress, f"{metric} GH pairs", options,
-                    matrix=True) if pairs else []
-    finally:
-        _RECORD = None
-    for (i, j), (d, r, t, full) in zip(pairs + list(known), list(runs) + list(known.values())):
-        if full is not None and (i, j) not in keep:
-            full = None
+    skipped = 0
+
+    def put(ij, value):   # one pair's (distance, relative, trimmed, MatchResult or None)
+        (i, j), (d, r, t, full) = ij, value
         dist[i, j] = dist[j, i] = d
         rel[i, j] = rel[j, i] = r
         trim[i, j] = trim[j, i] = t
-        if full is not None:
+        if full is not None and (i, j) in keep:
             kept[i, j] = full
+
+    t0 = time.perf_counter()
+    if store is not None:
+        from ..store import as_store
+
+        store = as_store(store)
+    held = None
+    try:
+        if client is None:
+            if store is not None:
+                shapes = store.shapes(shapes, metric, resolution=resolution, metric_options=metric_options,
+                                      rank_tau_scale=rank_tau_scale, progress=progress)
+            prepared = prepare(shapes, metric, progress=progress, **per_shape)
+            keys = None if store is None else [store.key_of(s) for s in prepared]
+        else:
+            held, keys = _dask_prepare(client, shapes, metric, store, per_shape, progress)
+        t1 = time.perf_counter()
+        done = np.zeros((n, n), dtype=bool)   # the pairs known, given or recorded
+        for ij, value in known.items():
+            put(ij, value)
+            done[ij] = True
+        record = None
+        if store is not None:
+            record = _stored_pairs(store, keys, done, keep, options, put)
+        pairs = np.argwhere(np.triu(~done, 1))   # (i, j), i < j, in row order
+        desc = f"{metric} GH pairs"
+        if len(pairs) and client is None:
+            pairs = [(int(i), int(j)) for i, j in pairs]
+            global _RECORD
+            _RECORD = record
+            try:
+                if k is None:
+                    runs = _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=True)
+                else:   # only the pairs that can be among some shape's k nearest
+                    got, skipped = _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress,
+                                             desc, options, match_options)
+                    pairs = [ij for ij in got if not done[ij]]
+                    runs = [got[ij] for ij in pairs]
+            finally:
+                _RECORD = None
+            for ij, value in zip(pairs, runs):
+                put(ij, value)
+        elif len(pairs):
+            _dask_pairs(client, held, pairs, keep, options, record, progress, desc, put)
+    finally:
+        if held is not None:
+            client.cancel(held)   # the workers drop the shapes
     return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim,
-                      rank_tau_scale, rank_residual)
+                      rank_tau_scale, rank_residual, skipped)
 
 
-def _stored_pairs(store, prepared, known: dict, keep: frozenset, options: dict):
-    """``known`` with the pairs the store has recorded (not those in ``keep``: their full
-    result is not stored), and the function that records each pair run now."""
+def _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress, desc, options, match_options):
+    """``({(i, j): worker result}, skipped)``: :func:`gromov.retrieval.knn_pairs` over the
+    prepared shapes, the pairs ``done`` already given as known, the others run by :func:`_run`
+    ``2 * jobs`` at a time."""
+    from ..retrieval import knn_pairs
+
+    known = {(int(i), int(j)): (dist[i, j], rel[i, j], trim[i, j], None) for i, j in zip(*np.nonzero(np.triu(done, 1)))}
+
+    def run(batch):
+        return _run(prepared, batch, keep, jobs, False, desc, options, matrix=True)
+
+    got = knn_pairs(prepared, k, run, n_samples=options["n_samples"], seed=options["seed"],
+                    rank_tau_scale=options["rank_tau_scale"], rank_residual=options["rank_residual"],
+                    norm=match_options.get("norm", "l2"), known=known, force=keep, batch=2 * jobs)
+    return got.results, int(got.skipped)
+
+
+#: Pairs looked up in a store at a time.
+STORE_CHUNK = 10_000
+
+
+def _stored_pairs(store, keys: list[str], done: np.ndarray, keep: frozenset, options: dict, put):
+    """``put`` the pairs the store has recorded (not those in ``keep``: their full result is
+    not stored) and mark them in ``done``; returns the function that records each pair run
+    now. ``keys``: the shapes' entry keys; ``done``: ``(n, n)`` bool, the pairs known already."""
     from ..store import match_options_key
 
-    keys = [store.key_of(s) for s in prepared]
     rest = {k: v for k, v in options.items() if k not in ("n_samples", "seed", "orientation")}
     key_options = match_options_key(options["n_samples"], options["seed"], rest)
-    n = len(prepared)
-    todo = {(i, j): store.pair_key(keys[i], keys[j], key_options)
-            for i in range(n) for j in range(i + 1, n) if (i, j) not in known}
-    found = store.pair_values(todo.values())
-    known = dict(known)
-    for ij, k in todo.items():
-        if k in found and ij not in keep:
-            known[ij] = (*found[k], None)
-            store.pairs_reused += 1
-    logger.info("store %s: %d of %d pairs recorded before", store.root, len(known), n * (n - 1) // 2)
+    n = len(keys)
 
-    def record(ij, result):   # in the worker that found it
-        store.record_pair(todo[ij], keys[ij[0]], keys[ij[1]], key_options, result)
+    def pair_key(i, j):
+        return store.pair_key(keys[i], keys[j], key_options)
 
-    return known, record
+    todo = ((i, j) for i in range(n) for j in range(i + 1, n) if not done[i, j])
+    while chunk := list(itertools.islice(todo, STORE_CHUNK)):   # in chunks: no key kept per pair
+        chunk_keys = {ij: pair_key(*ij) for ij in chunk}
+        found = store.pair_values(chunk_keys.values())
+        for ij, k in chunk_keys.items():
+            if k in found and ij not in keep:
+                put(ij, (*found[k], None))
+                done[ij] = True
+                store.pairs_reused += 1
+    logger.info("store %s: %d of %d pairs recorded before", store.root, store.pairs_reused, n * (n - 1) // 2)
+
+    def record(ij, result):   # in the worker that found it (with Dask, in this process)
+        store.record_pair(pair_key(*ij), keys[ij[0]], keys[ij[1]], key_options, result)
+
+    return record
+
+
+# ----------------------------------------------------------------------------- Dask
+def _dask_module():
+    try:
+        from .. import _dask
+    except ImportError as exc:
+        raise ImportError(str(exc)) from None   # one line: what to install
+    return _dask
+
+
+def _blas_threads() -> dict:
+    """``{library prefix: threads}`` of this process's BLAS libraries."""
+    from threadpoolctl import threadpool_info
+
+    return {d["prefix"]: d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"}
+
+
+def _dask_shape(source, label: str, metric: str, store, per_shape: dict, blas: dict):
+    """On a worker: ``(ShapeMetric, info)`` of one shape, prepared as :func:`prepare` does
+    (read from or added to the store ``(folder, load)`` if given), with ``blas`` threads
+    (:func:`_blas_threads` of the calling process: a dense metric's last bits depend on them).
+    ``info``: its working vertices and, with a store, its entry key, whether it was read back
+    and the store's warnings."""
+    from threadpoolctl import threadpool_limits
+
+    from .. import _dask
+
+    _dask.one_thread()
+    with threadpool_limits(limits=blas or None, user_api=None if blas else "blas"):
+        return _dask_shape_here(source, label, metric, store, per_shape)
+
+
+def _dask_shape_here(source, label: str, metric: str, store, per_shape: dict):
+    per_shape = dict(per_shape)
+    n_samples, rank_tau_scale = per_shape["n_samples"], per_shape["rank_tau_scale"]
+    info = {"key": None, "reused": False, "problems": []}
+    if store is not None:
+        from ..store import ShapeStore
+
+        st = ShapeStore(store[0], load=store[1])
+        log = logging.getLogger("gromov.store")   # its warnings: logged by the caller, not here too
+        quiet, propagate = logging.NullHandler(), log.propagate
+        log.addHandler(quiet)
+        log.propagate = False
+        try:
+            source = st.shape(source, metric, resolution=per_shape["resolution"],
+                              metric_options=per_shape["metric_options"], rank_tau_scale=rank_tau_scale)
+            info.update(key=st.key_of(source), reused=st.reused > 0, problems=list(st.problems))
+        finally:
+            log.removeHandler(quiet)
+            log.propagate = propagate
+            st.close()
+    if not isinstance(source, ShapeMetric):
+        source = ShapeMetric(source, metric, resolution=per_shape["resolution"],
+                             metric_options=per_shape["metric_options"])
+    info["n_vertices"] = n = source.mesh.n_vertices
+    if n_samples > n:   # a user error, raised by the caller (a worker would log it as a failure)
+        info["error"] = f"{label}: {n_samples} samples are more than the {n} vertices of its working set"
+        return source, info
+    (s,) = prepare([source], metric, **per_shape)
+    return s, info
+
+
+def _dask_prepare(client, shapes: list, metric: str, store, per_shape: dict, progress: bool):
+    """Each shape prepared on its home worker: ``(futures of (ShapeMetric, info), entry keys or
+    None)``; the store's counters and warnings are updated here."""
+    import operator
+    import uuid
+
+    from tqdm import tqdm
+
+    _dask = _dask_module()
+    addresses = list(_dask.worker_threads(client))
+    n = len(shapes)
+    homes = _dask.spread(n, len(addresses))
+    token = uuid.uuid4().hex[:8]
+    sources, labels = [], []
+    for i, s in enumerate(shapes):
+        if isinstance(s, (str, os.PathLike)):   # read by the worker
+            sources.append(os.path.abspath(os.fspath(s)))
+            labels.append(os.fspath(s))
+        else:
+            sources.append(s)
+            labels.append(f"shape {i}")
+    # shapes this store returned already: their keys are known, the workers need not look
+    given = [None if store is None or not isinstance(s, ShapeMetric) else store.key_of(s) for s in shapes]
+    held, infos = [], []
+    try:
+        for w, addr in enumerate(addresses):   # objects: sent once, to their home
+            idx = [i for i in range(n) if homes[i] == w and not isinstance(sources[i], str)]
+            if idx:
+                for i, f in zip(idx, client.scatter([sources[i] for i in idx], workers=[addr], hash=False)):
+                    sources[i] = f
+        spec = None if store is None else (str(store.root.resolve()), getattr(store, "_load", None))
+        blas = _blas_threads()   # as this process would compute the metrics
+        for i in range(n):
+            held.append(client.submit(_dask_shape, sources[i], labels[i], metric,
+                                      spec if given[i] is None else None, per_shape, blas,
+                                      key=f"gromov-shape-{i}-{token}", workers=[addresses[homes[i]]],
+                                      allow_other_workers=True, pure=False))
+            infos.append(client.submit(operator.itemgetter(1), held[-1], key=f"gromov-shape-info-{i}-{token}",
+                                       pure=False))
+        del sources
+        index = {f.key: i for i, f in enumerate(infos)}
+        out = [None] * n
+        with tqdm(total=n, desc=f"{metric} metrics", disable=not progress, leave=False) as bar:
+            for f in _dask.distributed.as_completed(infos):
+                out[index[f.key]] = f.result()
+                bar.update(1)
+    except BaseException:
+        client.cancel(held + infos)
+        raise
+    client.cancel(infos)
+    bad = [info["error"] for info in out if "error" in info]
+    if bad:
+        client.cancel(held)
+        raise ValueError(bad[0])
+    if store is None:
+        return held, None
+    log = logging.getLogger("gromov.store")
+    for info, key in zip(out, given):
+        if key is not None:
+            info["key"] = key
+            continue
+        store.reused += info["reused"]
+        store.computed += not info["reused"]
+        for message in info["problems"]:
+            store.problems.append(message)
+            log.warning("%s", message)
+    return held, [info["key"] for info in out]
+
+
+def _dask_pair(x, y, ij, options: dict, keep: bool, record: bool):
+    """On a worker: :func:`_pair_of` of two held shapes, and with ``record`` the result to
+    record in the store (without the arrays the store does not keep)."""
+    import dataclasses
+
+    from .. import _dask
+
+    _dask.one_thread()
+    found = []
+    d, rel, t, full = _pair_of(x[0], y[0], ij, options, matrix=True, keep=keep,
+                               record=(lambda _, r: found.append(r)) if record else None)
+    light = None
+    if found:
+        light = dataclasses.replace(found[0], pair_distortion=np.zeros((0, 0)), history=np.zeros(0))
+    return d, rel, t, full, light
+
+
+def _dask_pairs(client, held: list, pairs: list, keep: frozenset, options: dict, record, progress: bool,
+                desc: str, put) -> None:
+    """:func:`_run` on the Dask workers, each pair where its shapes are (:func:`gromov._dask.plan`):
+    ``put(ij, (distance, relative, trimmed, MatchResult or None))`` as each finishes."""
+    import uuid
+
+    from tqdm import tqdm
+
+    _dask = _dask_module()
+    threads = _dask.worker_threads(client)
+    who = client.who_has(held)
+    addresses = list(threads)
+    at = {a: w for w, a in enumerate(addresses)}
+    homes = [next((at[a] for a in who.get(f.key, ()) if a in at), i % len(addresses))
+             for i, f in enumerate(held)]
+    token = uuid.uuid4().hex[:8]
+
+    def submit(ij, addr):
+        i, j = ij
+        return client.submit(_dask_pair, held[i], held[j], ij, options, ij in keep, record is not None,
+                             key=f"gromov-pair-{i}-{j}-{token}", workers=[addr], allow_other_workers=True,
+                             pure=False)
+
+    with tqdm(total=len(pairs), desc=desc, disable=not progress, leave=False) as bar:
+        def done(ij, fut):
+            d, rel, t, full, light = fut.result()
+            if record is not None:
+                record(ij, light)
+            put(ij, (d, rel, t, full))
+            bar.update(1)
+
+        _dask.run_pinned(client, _dask.plan(pairs, homes, len(addresses)), addresses, submit, done)

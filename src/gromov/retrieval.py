@@ -1,0 +1,701 @@
+r"""Retrieval: the shapes of a collection nearest to a query, without matching every pair.
+
+Every pair of shapes is ranked by one number, the *ranked value* of recognition
+(:func:`gromov.experiments.gh_matrix`'s ``trimmed``, ``gromov pairwise``): for the two-sided
+correspondence C between the farthest point samples P of X and Q of Y that :func:`gromov.match`
+finds (``orientation="ignore"``, the shapes in their prepared metric),
+
+.. math:: v(X, Y) = \tfrac12\,\sigma_h\big(\rho(d_X(a, b), d_Y(a', b'))\big)_{(a,a'),(b,b') \in C,\ a \ne b},
+
+:math:`\sigma_h` the RMS of the best-fitting ``TRIM_KEEP`` = 80% of the residuals
+(:func:`gromov.gmds.trimmed_rms`), :math:`\rho(s, t) = \log\frac{s+\epsilon}{t+\epsilon}` with
+:math:`\epsilon = 0.01 \max(\operatorname{diam} X, \operatorname{diam} Y)` (``rank_residual="log"``)
+or :math:`(s - t)/\max(\operatorname{diam} X, \operatorname{diam} Y)` (``"difference"``), the
+distances those of the heat kernel at ``rank_tau_scale`` times the diffusion time
+(:func:`gromov.gh.ranking_value`). With ``rank_by="gh"`` the ranked value is the relative GH
+estimate, ``½ (mean |r|^p)^{1/p} / max diam`` of the differences r in the match's metric.
+
+**Which lower bounds hold.** The per-shape lower bounds on the Gromov-Hausdorff distance of the
+literature -- ``½|diam X − diam Y|``, half the Hausdorff distance between the eccentricity
+sets, the eccentricity and distance-distribution bounds (Mémoli, Found. Comput. Math. 11, 2011,
+§6; Mémoli & Sapiro, Found. Comput. Math. 5, 2005), the bottleneck distance of persistence
+diagrams (Chazal et al., Comput. Graph. Forum 28, 2009) -- bound
+:math:`d_{GH} \le \tfrac12 \operatorname{dis} R` for every correspondence R, the *largest*
+distortion. The ranked value is a trimmed (or power) *mean* of the residuals, which can be far
+below their maximum: a shape X that is Y with a long thin tail has ``diam X ≫ diam Y``, yet the
+tail's samples take part in fewer than 20% of the pairs, which the trimmed RMS sets aside, so
+``v(X, Y)`` can be 0 while ``½|diam X − diam Y|`` is large (``tests/test_retrieval.py``). None of
+those bounds is a lower bound of the ranked value, and none is used as one here.
+
+What does hold is a bound pair by pair. On X, the block of C between the samples P themselves
+holds their fixed distances :math:`d_X(p_a, p_b)`, which :math:`d_Y(f(p_a), f(p_b))` is compared
+with, f the images of P on Y. Whatever the images, that distance lies in
+:math:`[0, \operatorname{diam} Y]` (it interpolates squared vertex distances with barycentric
+weights, a convex combination, :class:`gromov.gmds.SurfaceDistance`), so
+
+.. math:: |\rho_{ab}| \ge \ell_{ab} = \max\big(0,\ \rho(d_X(p_a, p_b), \operatorname{diam} Y)\big),
+
+and the same on Q with the roles swapped; the other residuals are bounded below by 0. The
+trimmed RMS (the mean of the h smallest squares) and the power means are non-decreasing in
+each residual's magnitude, so
+
+.. math:: v(X, Y) \ge B(X, Y) = \tfrac12\,\sigma_h(\ell),
+
+which needs only each shape's sample distances and diameter in the ranking metric: the
+per-shape invariant :class:`ShapeBound`, computed once per shape. B is symmetric in X and Y.
+Pruning with it is exact (``prune="bound"``): :func:`nearest` and :func:`knn_pairs` return the
+neighbours brute force returns. It is also the best bound the ranges alone give (the images
+can realise any distance in range, pair by pair), and it is weak for the trimmed ranking: the
+samples' own pairs are a quarter of all pairs and the trimmed RMS sets a fifth aside, so B > 0
+only where about four fifths of one shape's sample distances exceed the other's diameter --
+shapes of very different size in the ranking metric (raw heat distances scale as one over
+length), e.g. a sphere against strips 60 times longer. On the validation sets (held-out TOSCA
+classes; stretched synthetic set) it is 0 for every pair; for the GH estimate, an RMS without
+trimming, it is positive for every pair and exact pruning skips 0-34% of the matches.
+
+**A heuristic beside it.** ``prune="profile"`` (the default) also skips a pair when ``slack``
+times its *profile gap* -- the same summary of the residuals between the two shapes' sorted
+sample distances, matched quantile to quantile (the distance-distribution comparison of
+Mémoli 2011, §6, summarised as the ranking is) -- exceeds the k-th value found. It is not a
+lower bound (it is 0.24-3.2 times the ranked value on the validation sets), so the neighbours
+need not be brute force's: with ``slack`` = 0.25 recall@1, 3 and 5 is 1.0 on both validation
+sets, with 43-81% of a search's matches skipped and 18-80% of the pairs of every shape's k
+nearest (:data:`PROFILE_SLACK`, docs/guide/retrieval.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import numbers
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._defaults import DEFAULT_RESOLUTION, RANK_RESIDUAL, RANK_TAU_SCALE
+from .gh import RANK_LOG_FLOOR, ShapeMetric, _match, _upgrade_options, check_rank_residual, check_rank_tau_scale
+from .gmds import EmbeddedDistance, norm_value, parse_norm, trimmed_rms
+
+__all__ = ["BOUND_NAME", "PROFILE_SLACK", "PRUNE_MODES", "KnnPairs", "NearestResult", "Neighbor", "ShapeBound",
+           "knn_pairs", "nearest", "pair_bound", "profile_gap", "shape_bound"]
+
+logger = logging.getLogger(__name__)
+
+#: How candidates are skipped: by the lower bound only (exact), or also by the profile gap.
+PRUNE_MODES = ("bound", "profile", "none")
+#: ``prune="profile"`` skips a pair when this times its profile gap exceeds the k-th value found.
+#: Chosen on the validation sets: the largest profile gap over ranked value of any pair is 3.17
+#: (held-out TOSCA classes and gorillas, 190 pairs) and 2.28 (stretched synthetic set, 120
+#: pairs), so 0.25 times the gap stayed below every ranked value and recall@1, 3, 5 is 1.0 on
+#: both, with 43-81% of a search's matches skipped; at 0.5 recall@5 drops to 0.89 (``.venv/bin/python
+#: benchmarks/bench_retrieval.py --set heldout|synthetic``; docs/guide/retrieval.md).
+PROFILE_SLACK = 0.25
+#: Name (with the samples and seed appended) of the invariants kept beside a store entry.
+BOUND_NAME = "retrieval-bound-1"
+#: Relative margin that keeps the bound below the ranked value whatever the rounding.
+_MARGIN = 1e-9
+_RANK_BY = ("trimmed", "gh")
+
+
+@dataclass(frozen=True, eq=False)
+class ShapeBound:
+    """What the lower bound needs of one shape (:func:`shape_bound`), computed once per shape.
+
+    Attributes
+    ----------
+    distances : ndarray (M (M - 1) / 2,)
+        Distances between the shape's M farthest point samples in the ranking metric (the heat
+        distance at ``rank_tau_scale`` times the diffusion time, else the match's), ascending.
+    diameter : float
+        The largest distance between working vertices in that metric.
+    gh_distances : ndarray (M (M - 1) / 2,)
+        The same distances in the match's metric, ascending (``rank_by="gh"``).
+    gh_diameter : float
+        The diameter in the match's metric.
+    n_samples : int
+    ranked_apart : bool
+        Whether the ranking metric is not the match's (the heat kernel with ``rank_tau_scale``):
+        a pair is ranked in it only when both shapes have it, as :func:`gromov.match` does.
+    """
+
+    distances: np.ndarray
+    diameter: float
+    gh_distances: np.ndarray
+    gh_diameter: float
+    n_samples: int
+    ranked_apart: bool
+
+    def arrays(self) -> dict:
+        """The attributes as named arrays (what a shape store keeps)."""
+        return {"distances": self.distances, "diameter": np.float64(self.diameter),
+                "gh_distances": self.gh_distances, "gh_diameter": np.float64(self.gh_diameter),
+                "n_samples": np.int64(self.n_samples), "ranked_apart": np.bool_(self.ranked_apart)}
+
+    @classmethod
+    def from_arrays(cls, a: dict) -> ShapeBound:
+        """The inverse of :meth:`arrays`."""
+        return cls(np.asarray(a["distances"], dtype=np.float64), float(a["diameter"]),
+                   np.asarray(a["gh_distances"], dtype=np.float64), float(a["gh_diameter"]),
+                   int(a["n_samples"]), bool(a["ranked_apart"]))
+
+
+def _condensed(d: np.ndarray) -> np.ndarray:
+    return np.sort(d[np.triu_indices(len(d), 1)])
+
+
+def shape_bound(shape: ShapeMetric, n_samples: int = 100, seed: int = 0,
+                rank_tau_scale: float | None = RANK_TAU_SCALE) -> ShapeBound:
+    """The invariants of one prepared shape that :func:`pair_bound` and :func:`profile_gap` read.
+
+    Parameters
+    ----------
+    shape : ShapeMetric
+        In the metric the pairs are matched in (recognition's: ``as_prepared``).
+    n_samples, seed : int
+        The farthest point samples :func:`gromov.match` takes (``shape.samples(n_samples, seed)``).
+    rank_tau_scale : float or None, default RANK_TAU_SCALE
+        As in :func:`gromov.experiments.gh_matrix`.
+
+    Returns
+    -------
+    ShapeBound
+    """
+    if not isinstance(shape, ShapeMetric):
+        raise TypeError(f"shape must be a prepared gromov.ShapeMetric, got {type(shape).__name__}")
+    n_samples = int(n_samples)
+    if not 3 <= n_samples <= shape.mesh.n_vertices:
+        raise ValueError(f"n_samples must be between 3 and the {shape.mesh.n_vertices} working vertices, "
+                         f"got {n_samples}")
+    P = shape.samples(n_samples, seed)
+    gh = _condensed(shape.distances[np.ix_(P, P)])
+    ranking = None if rank_tau_scale is None else shape.ranking_surface(check_rank_tau_scale(rank_tau_scale))
+    if ranking is None:
+        return ShapeBound(gh, shape.diameter, gh, shape.diameter, n_samples, False)
+    surface, diameter = ranking
+    if not isinstance(surface, EmbeddedDistance):   # pragma: no cover - every ranking metric is embedded
+        raise TypeError(f"unexpected ranking metric {type(surface).__name__}")
+    return ShapeBound(_condensed(surface.block(P)), diameter, gh, shape.diameter, n_samples, True)
+
+
+def _summary(values: np.ndarray, n_pairs: int, rank_by: str, p: float) -> float:
+    """½ the ranking's summary of ``values`` padded with zeros to ``n_pairs`` residuals."""
+    r = np.zeros(n_pairs)
+    r[:len(values)] = values
+    return 0.5 * (trimmed_rms(r) if rank_by == "trimmed" else norm_value(r, p))
+
+
+def _metric(b: ShapeBound, c: ShapeBound, rank_by: str):
+    """Sample distances and diameters of the two shapes in the metric the pair is ranked in."""
+    if rank_by == "trimmed" and b.ranked_apart and c.ranked_apart:
+        return b.distances, b.diameter, c.distances, c.diameter
+    return b.gh_distances, b.gh_diameter, c.gh_distances, c.gh_diameter
+
+
+def _checked(rank_by: str, rank_residual: str, norm) -> float:
+    if rank_by not in _RANK_BY:
+        raise ValueError(f"rank_by must be one of {_RANK_BY}, got {rank_by!r}")
+    check_rank_residual(rank_residual)
+    return parse_norm(norm)
+
+
+def pair_bound(x: ShapeBound, y: ShapeBound, *, rank_by: str = "trimmed", rank_residual: str = RANK_RESIDUAL,
+               norm="l2") -> float:
+    r"""A lower bound on the ranked value of the pair ``(X, Y)``, from per-shape invariants only.
+
+    :math:`B = \tfrac12 \sigma(\ell)` (module docstring): :math:`\ell` is
+    :math:`\rho(d_X(p_a, p_b), \operatorname{diam} Y)` where positive on the pairs of X's samples,
+    the same with X and Y swapped on Y's, 0 elsewhere, summarised as the ranking summarises
+    the residuals (``rank_by="trimmed"``: :func:`gromov.gh.ranking_value` with ``rank_residual``;
+    ``"gh"``: the relative GH estimate in ``norm``). Symmetric in X and Y; never above the value
+    :func:`gromov.experiments.gh_matrix` ranks the pair by, whatever correspondence it finds.
+    """
+    p = _checked(rank_by, rank_residual, norm)
+    if x.n_samples != y.n_samples:
+        raise ValueError(f"the two shapes' invariants have {x.n_samples} and {y.n_samples} samples")
+    dx, diam_x, dy, diam_y = _metric(x, y, rank_by)
+    diam = max(diam_x, diam_y)
+    if not diam > 0:
+        return 0.0
+    log = rank_by == "trimmed" and rank_residual == "log"
+    eps = RANK_LOG_FLOOR * diam
+
+    def exceed(d, top):   # the positive lower bounds of one shape's sample pairs
+        top = top * (1.0 + _MARGIN)
+        a = d[np.searchsorted(d, top, side="right"):]
+        return np.log((a + eps) / (top + eps)) if log else (a - top) / diam
+
+    lx, ly = exceed(dx, diam_y), exceed(dy, diam_x)
+    m = 2 * x.n_samples   # the correspondence's points on each side: P and the images of Q
+    pos = np.concatenate([lx, lx, ly, ly])   # ordered pairs: each unordered one twice
+    return _summary(pos, m * (m - 1), rank_by, p) * (1.0 - _MARGIN)
+
+
+def profile_gap(x: ShapeBound, y: ShapeBound, *, rank_by: str = "trimmed", rank_residual: str = RANK_RESIDUAL,
+                norm="l2") -> float:
+    """The ranking's summary of the residuals between the two shapes' sorted sample distances,
+    matched quantile to quantile: a cheap estimate of the ranked value (the distance-distribution
+    comparison of Mémoli, Found. Comput. Math. 2011, §6), **not** a lower bound of it."""
+    p = _checked(rank_by, rank_residual, norm)
+    dx, diam_x, dy, diam_y = _metric(x, y, rank_by)
+    if len(dx) != len(dy):
+        raise ValueError(f"the two shapes' invariants have {len(dx)} and {len(dy)} sample pairs")
+    diam = max(diam_x, diam_y)
+    if not diam > 0:
+        return 0.0
+    if rank_by == "trimmed" and rank_residual == "log":
+        eps = RANK_LOG_FLOOR * diam
+        r = np.log((dx + eps) / (dy + eps))
+    else:
+        r = (dx - dy) / diam
+    return _summary(r, len(r), rank_by, p)
+
+
+# ----------------------------------------------------------------------------- the search
+def _check_k(k) -> int:
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, numbers.Integral) or k < 1:
+        raise ValueError(f"k must be an integer >= 1, got {k!r}")
+    return int(k)
+
+
+def _check_prune(prune: str, slack: float) -> None:
+    if prune not in PRUNE_MODES:
+        raise ValueError(f"prune must be one of {PRUNE_MODES}, got {prune!r}")
+    if not (isinstance(slack, numbers.Real) and 0.0 < slack < np.inf):
+        raise ValueError(f"slack must be a positive number, got {slack!r}")
+
+
+class _Rows:
+    """The k smallest ``(value, other)`` found so far in each row."""
+
+    def __init__(self, n: int, k: int):
+        self.k = k
+        self.best: list[list] = [[] for _ in range(n)]
+
+    def add(self, row: int, value: float, other: int) -> None:
+        b = self.best[row]
+        b.append((np.inf if np.isnan(value) else value, other))   # NaN: last
+        b.sort()
+        del b[self.k:]
+
+    def threshold(self, row: int) -> float:
+        """The k-th smallest value in ``row`` (inf while fewer than k are known)."""
+        b = self.best[row]
+        return b[-1][0] if len(b) == self.k else np.inf
+
+
+def _schedule(pairs, rows_of, key, tie, k: int, n_rows: int, run, *, known: dict, force=frozenset(),
+              batch: int = 1):
+    """Match the pairs that can enter a row's k nearest, cheapest ``key`` first.
+
+    A pair is skipped when its ``key`` exceeds the k-th value found so far in every row it
+    belongs to (``rows_of(pair)``); ``run(list of pairs)`` returns their values; ``known``:
+    values of pairs found before. Returns ``(values, rows, n_run, n_skipped)``.
+    """
+    rows = _Rows(n_rows, k)
+    values = {}
+
+    def record(pair, value):
+        values[pair] = value
+        for row, other in rows_of(pair):
+            rows.add(row, value, other)
+
+    for pair in pairs:
+        if pair in known:
+            record(pair, known[pair])
+    order = np.lexsort((np.asarray(tie, dtype=float), np.asarray(key, dtype=float)))
+    n_run = n_skipped = 0
+    pos = 0
+    while pos < len(order):
+        take = []
+        while pos < len(order) and len(take) < batch:
+            idx = int(order[pos])
+            pos += 1
+            pair = pairs[idx]
+            if pair in values:
+                continue
+            if pair not in force and all(key[idx] > rows.threshold(r) for r, _ in rows_of(pair)):
+                n_skipped += 1
+                continue
+            take.append(pair)
+        if take:
+            for pair, value in zip(take, run(take)):
+                record(pair, float(value))
+            n_run += len(take)
+    return values, rows, n_run, n_skipped
+
+
+def _keys(bounds, gaps, prune: str, slack: float) -> np.ndarray:
+    if prune == "none":
+        return np.full(len(bounds), -np.inf)
+    b = np.asarray(bounds, dtype=float)
+    return np.maximum(b, slack * np.asarray(gaps, dtype=float)) if prune == "profile" else b
+
+
+@dataclass(frozen=True)
+class Neighbor:
+    """One of the nearest shapes: its position among the candidates, its name (the file, where
+    known) and the ranked value of the pair (query, it)."""
+
+    index: int
+    name: str
+    distance: float
+
+
+@dataclass(frozen=True, eq=False)
+class NearestResult:
+    """The outcome of :func:`nearest`.
+
+    Attributes
+    ----------
+    neighbors : list of Neighbor
+        The k nearest candidates, nearest first (ties by position).
+    full_matches : int
+        Pairs (query, candidate) matched in full.
+    skipped : int
+        Candidates not matched: their lower bound (or, ``prune="profile"``, their profile gap
+        times ``slack``) exceeded the k-th value found.
+    bounds, gaps : ndarray (m,)
+        Each candidate's lower bound (:func:`pair_bound`) and profile gap (:func:`profile_gap`).
+    values : dict
+        ``{candidate index: ranked value}`` of the candidates matched.
+    exact : bool
+        Whether only the lower bound pruned (the neighbours are brute force's).
+    rank_by : str
+    """
+
+    neighbors: list
+    full_matches: int
+    skipped: int
+    bounds: np.ndarray
+    gaps: np.ndarray
+    values: dict = field(default_factory=dict)
+    exact: bool = True
+    rank_by: str = "trimmed"
+
+    def to_dict(self) -> dict:
+        """The JSON of ``gromov search --json``: ``neighbors`` (``file``, ``distance``, nearest
+        first), ``full_matches``, ``skipped``, ``exact`` and ``ranked_by``."""
+        return {"neighbors": [{"file": n.name, "distance": n.distance} for n in self.neighbors],
+                "full_matches": self.full_matches, "skipped": self.skipped, "exact": self.exact,
+                "ranked_by": self.rank_by}
+
+
+def _ranked(result, rank_by: str) -> float:
+    return float(result.ranking_distance if rank_by == "trimmed" else result.relative_distance)
+
+
+def _options(n_samples, seed, rank_tau_scale, rank_residual, match_options, caller) -> dict:
+    match_options = _upgrade_options(match_options, caller, stacklevel=4)
+    match_options.pop("orientation", None)   # the GH estimate: the lowest distortion found
+    return dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale, rank_residual=rank_residual,
+                orientation="ignore", as_prepared=True, **match_options)
+
+
+def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: int = 100, seed: int = 0,
+            resolution: int | None = DEFAULT_RESOLUTION, metric_options: dict | None = None,
+            rank_by: str = "trimmed", rank_tau_scale: float | None = RANK_TAU_SCALE,
+            rank_residual: str = RANK_RESIDUAL, prune: str = "profile", slack: float = PROFILE_SLACK,
+            progress: bool = False, **match_options) -> NearestResult:
+    """The ``k`` shapes nearest to ``query``, ranked as :func:`gromov.experiments.gh_matrix` ranks.
+
+    Each candidate's lower bound on its ranked value (:func:`pair_bound`) and profile gap
+    (:func:`profile_gap`) come from per-shape invariants (:func:`shape_bound`); candidates are
+    matched in order of the larger of the bound and ``slack`` times the gap, and those for
+    which it exceeds the k-th value found are not matched at all. The bound is a true lower
+    bound: with ``prune="bound"`` the result is brute force's. It is rarely above zero for the
+    trimmed ranking (shapes of very different size only), which the profile gap, not a bound,
+    prunes by default (recall 1.0 on the validation sets, module docstring).
+
+    Parameters
+    ----------
+    query : path, Mesh, PointCloud or ShapeMetric
+    shapes : ShapeStore, path of a store folder, or sequence of shapes
+        A store (:mod:`gromov.store`): its entries computed with these options
+        (:meth:`ShapeStore.shape_options <gromov.store.ShapeStore.shape_options>`), the
+        invariants kept beside each entry (computed once); an entry of the query's own file is
+        left out. A sequence: paths, meshes or prepared ``ShapeMetric`` objects.
+    k : int, default 5
+        Neighbours returned (all candidates when there are fewer).
+    metric, n_samples, seed, resolution, metric_options
+        As in :func:`gromov.experiments.gh_matrix` (recognition's metric: raw heat units).
+    rank_by : {"trimmed", "gh"}, default "trimmed"
+        The trimmed distortion (``PairwiseGH.trimmed``) or the relative GH estimate.
+    rank_tau_scale, rank_residual
+        As in :func:`gromov.experiments.gh_matrix`.
+    prune : {"profile", "bound", "none"}, default "profile"
+        Skip candidates also by ``slack`` times the profile gap (:func:`profile_gap`; not
+        exact), by the lower bound only (exact), or match every candidate.
+    slack : float, default PROFILE_SLACK (0.25)
+        With ``prune="profile"``.
+    progress : bool, default False
+        A progress bar (tqdm) on stderr.
+    **match_options
+        Passed to :func:`gromov.match` (``norm``, ``search``...).
+
+    Returns
+    -------
+    NearestResult
+
+    Examples
+    --------
+    >>> r = nearest("cat2.off.gz", "tosca.store", k=3)         # doctest: +SKIP
+    >>> [(n.name, n.distance) for n in r.neighbors], r.skipped  # doctest: +SKIP
+    """
+    k = _check_k(k)
+    _checked(rank_by, rank_residual, match_options.get("norm", "l2"))
+    _check_prune(prune, slack)
+    rank_tau_scale = check_rank_tau_scale(rank_tau_scale)
+    options = _options(n_samples, seed, rank_tau_scale, rank_residual, match_options, "nearest")
+    shape_args = {"resolution": resolution, "metric_options": metric_options}
+    candidates, query_shape = _candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale)
+    if not candidates:
+        raise ValueError("no shapes to search: the collection is empty (or holds only the query)")
+    qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
+    kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
+    cbs = [c.bound() for c in candidates]
+    bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
+    gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(candidates), desc="nearest", disable=not progress, leave=False)
+
+    def run(pairs):
+        out = []
+        for (_, j) in pairs:
+            r = _match(query_shape, candidates[j].shape(), metric, **options)
+            out.append(_ranked(r, rank_by))
+            bar.update(1)
+        return out
+
+    pairs = [(0, j) for j in range(len(candidates))]
+    try:
+        values, rows, n_run, n_skipped = _schedule(pairs, lambda ij: [(0, ij[1])], _keys(bounds, gaps, prune, slack),
+                                                   gaps, min(k, len(candidates)), 1, run, known={})
+    finally:
+        bar.close()
+    neighbors = [Neighbor(j, candidates[j].name, v) for v, j in rows.best[0]]
+    return NearestResult(neighbors, n_run, n_skipped, bounds, gaps, {j: v for (_, j), v in values.items()},
+                         prune == "bound" or prune == "none", rank_by)
+
+
+# ----------------------------------------------------------------------------- candidates
+class _Candidate:
+    """A shape to search: its invariants (possibly kept in a store) and, when it is matched,
+    its prepared shape (read from the store only then, and let go after)."""
+
+    def __init__(self, name: str, bound, shape):
+        self.name, self._bound, self._shape = name, bound, shape
+
+    def bound(self) -> ShapeBound:
+        if callable(self._bound):
+            self._bound = self._bound()
+        return self._bound
+
+    def shape(self) -> ShapeMetric:
+        return self._shape() if callable(self._shape) else self._shape
+
+
+def _candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale):
+    """``(candidates, prepared query)`` from a store or a sequence of shapes."""
+    from .store import ShapeStore
+
+    if isinstance(shapes, ShapeStore) or (isinstance(shapes, (str, os.PathLike)) and os.path.isdir(shapes)):
+        return _store_candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale)
+    if isinstance(shapes, (str, os.PathLike)):
+        from .store import StoreError
+
+        raise StoreError(f"shapes: {os.fspath(shapes)} is not a shape store folder")
+    items = list(shapes)
+    prepared = [_prepared(s, metric, shape_args) for s in items]
+    q = _prepared(query, metric, shape_args)
+    names = [os.fspath(s) if isinstance(s, (str, os.PathLike)) else f"shape {i}" for i, s in enumerate(items)]
+    return ([_Candidate(n, (lambda s=s: shape_bound(s, n_samples, seed, rank_tau_scale)), s)
+             for n, s in zip(names, prepared)], q)
+
+
+def _prepared(s, metric, shape_args) -> ShapeMetric:
+    if isinstance(s, ShapeMetric):
+        if s.metric != metric:
+            raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
+        return s
+    return ShapeMetric(s, metric, **shape_args)
+
+
+def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_tau_scale):
+    """The store's entries with these options (the query's own entry left out), their
+    invariants read from the store or computed from the entry and kept there."""
+    from . import __version__
+    from .store import ShapeStore, StoreError, as_store, file_sha256
+
+    if not isinstance(store, ShapeStore):
+        if not os.path.isfile(os.path.join(os.fspath(store), "catalogue.sqlite")):
+            raise StoreError(f"{os.fspath(store)} is not a shape store (no catalogue.sqlite): "
+                             "gromov index FILES --store DIR makes one")
+        store = as_store(store)
+    tau = rank_tau_scale
+    options = ShapeStore.shape_options(metric, rank_tau_scale=tau, **shape_args)
+    entries = [e for e in store.entries() if e.options == options and e.version == __version__]
+    if not entries:
+        n = len(store.entries())
+        raise StoreError(f"the store {store.root} has no shapes computed with these options and this gromov "
+                         f"version ({n} entr{'y' if n == 1 else 'ies'} with others): gromov index FILES "
+                         "--store DIR with the same options adds them")
+    query_key = q = None
+    if isinstance(query, ShapeMetric):
+        query_key = store.key_of(query)
+        q = _prepared(query, metric, shape_args)
+    elif isinstance(query, (str, os.PathLike)):
+        if not os.path.isfile(query):
+            raise FileNotFoundError(f"no such file: {os.fspath(query)}")
+        query_key = ShapeStore.entry_key(file_sha256(query), options)
+    by_key = {e.key: e for e in entries}
+    if q is None and query_key in by_key:
+        q = _entry_shape(store, by_key[query_key], shape_args, tau)
+    elif q is None:   # read as the store reads its files
+        q = _prepared(store._load(os.fspath(query)) if store._load is not None and query_key is not None
+                      else query, metric, shape_args)
+    name = f"{BOUND_NAME}:n_samples={int(n_samples)}:seed={int(seed)}"
+
+    def bound_of(e):
+        def compute():
+            kept = store.extra(e.key, name)
+            if kept is not None:
+                try:
+                    return ShapeBound.from_arrays(kept)
+                except (KeyError, ValueError, TypeError):   # written otherwise: computed again
+                    pass
+            try:
+                b = shape_bound(_entry_shape(store, e, shape_args, tau), n_samples, seed, tau)
+            except ValueError as exc:   # e.g. fewer working vertices than samples: say which shape
+                raise ValueError(f"{e.path or e.key}: {exc}") from None
+            store.put_extra(e.key, name, b.arrays())
+            return b
+        return compute
+
+    return ([_Candidate(e.path or e.key, bound_of(e), (lambda e=e: _entry_shape(store, e, shape_args, tau)))
+             for e in entries if e.key != query_key], q)
+
+
+def _entry_shape(store, entry, shape_args, rank_tau_scale) -> ShapeMetric:
+    """The ShapeMetric of a store entry, read by its key (checked against its checksum); an
+    entry that cannot be read is computed again from its file where that is still there."""
+    from .store import StoreError, _read_npz, _shape_from_arrays
+
+    data, reason = store._read(entry.file, entry.checksum)
+    if reason is None:
+        try:
+            s = _shape_from_arrays(_read_npz(data))
+            store._keys[s] = entry.key
+            return s
+        except Exception as exc:   # noqa: BLE001 - any unreadable entry is computed again
+            reason = f"cannot be read ({type(exc).__name__}: {exc})"
+    if entry.path is None or not os.path.isfile(entry.path):
+        raise StoreError(f"{entry.path or entry.key}: stored entry {entry.file} {reason}, and its file is gone")
+    opts = entry.options
+    return store.shape(entry.path, opts["metric"], resolution=opts["resolution"],
+                       metric_options=shape_args.get("metric_options"), rank_tau_scale=rank_tau_scale)
+
+
+# ----------------------------------------------------------------------------- all shapes
+@dataclass(frozen=True, eq=False)
+class KnnPairs:
+    """The outcome of :func:`knn_pairs`.
+
+    Attributes
+    ----------
+    results : dict
+        ``{(i, j): what run returned for the pair}`` (``i < j``) of every pair matched or given
+        in ``known``.
+    neighbors : ndarray (n, k) int
+        Each shape's k nearest others, nearest first (ties by index).
+    distances : ndarray (n, k)
+        Their ranked values.
+    full_matches, skipped : int
+        Pairs matched now, and pairs not matched (neither known nor needed).
+    bounds : ndarray (n, n)
+        The lower bound of every pair (:func:`pair_bound`), 0 on the diagonal.
+    """
+
+    results: dict
+    neighbors: np.ndarray
+    distances: np.ndarray
+    full_matches: int
+    skipped: int
+    bounds: np.ndarray
+
+
+def knn_pairs(shapes, k: int, run, *, n_samples: int = 100, seed: int = 0,
+              rank_tau_scale: float | None = RANK_TAU_SCALE, rank_residual: str = RANK_RESIDUAL,
+              rank_by: str = "trimmed", norm="l2", known: dict | None = None, force=(), batch: int = 1,
+              prune: str = "profile", slack: float = PROFILE_SLACK) -> KnnPairs:
+    """Each shape's ``k`` nearest others, matching only the pairs that can be among them.
+
+    The scheduler behind :func:`gromov.experiments.gh_matrix`'s ``k``: the unordered pairs are
+    taken in order of their lower bound (:func:`pair_bound`) or, with ``prune="profile"``, of the
+    larger of it and ``slack`` times the profile gap (ties by the gap), and a pair is skipped
+    when that exceeds the k-th value found so far for both of its shapes. With
+    ``prune="bound"`` every shape's k nearest are brute force's.
+
+    Parameters
+    ----------
+    shapes : list of ShapeMetric
+        Prepared shapes (:func:`gromov.experiments.pairwise.prepare`).
+    k : int
+        Neighbours per shape (capped at ``n - 1``).
+    run : callable
+        ``run(list of (i, j)) -> list``, one entry per pair, indexable as gh_matrix's worker
+        results ``(distance, relative, trimmed, ...)``: the pair's ranked value is entry 2
+        (``rank_by="trimmed"``) or 1 (``"gh"``). Called with up to ``batch`` pairs at a time.
+    n_samples, seed, rank_tau_scale, rank_residual, rank_by, norm
+        As the pairs are matched and ranked.
+    known : dict, optional
+        ``{(i, j): the same tuples}`` of pairs found before: not run again.
+    force : iterable of (int, int)
+        Pairs run whatever their bound (gh_matrix's ``keep``).
+    batch : int, default 1
+        Pairs handed to ``run`` at once (e.g. the worker processes; a pair in a batch may turn
+        out not to have been needed, never the other way).
+    prune, slack
+        As in :func:`nearest`.
+
+    Returns
+    -------
+    KnnPairs
+    """
+    shapes = list(shapes)
+    n = len(shapes)
+    if n < 2:
+        raise ValueError(f"need at least two shapes, got {n}")
+    k = min(_check_k(k), n - 1)
+    _checked(rank_by, rank_residual, norm)
+    _check_prune(prune, slack)
+    if int(batch) < 1:
+        raise ValueError(f"batch must be >= 1, got {batch}")
+    inv = [shape_bound(s, n_samples, seed, rank_tau_scale) for s in shapes]
+    kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": norm}
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+    bounds = np.array([pair_bound(inv[i], inv[j], **kw) for i, j in pairs])
+    gaps = np.array([profile_gap(inv[i], inv[j], **kw) for i, j in pairs])
+    at = 2 if rank_by == "trimmed" else 1
+    results = {(int(i), int(j)): v for (i, j), v in (known or {}).items()}
+
+    def run_values(take):
+        out = run(take)
+        for ij, r in zip(take, out):
+            results[ij] = r
+        return [r[at] for r in out]
+
+    force = frozenset((int(i), int(j)) for i, j in force)
+    _, rows, n_run, n_skipped = _schedule(
+        pairs, lambda ij: [(ij[0], ij[1]), (ij[1], ij[0])], _keys(bounds, gaps, prune, slack), gaps, k, n,
+        run_values, known={ij: r[at] for ij, r in results.items()}, force=force, batch=int(batch))
+    nbr = np.full((n, k), -1, dtype=np.int64)
+    dist = np.full((n, k), np.nan)
+    for i in range(n):
+        for c, (v, j) in enumerate(rows.best[i]):
+            nbr[i, c], dist[i, c] = j, v
+    B = np.zeros((n, n))
+    iu = np.triu_indices(n, 1)
+    B[iu] = bounds
+    B.T[iu] = bounds
+    return KnnPairs(results, nbr, dist, n_run, n_skipped, B)
