@@ -88,3 +88,23 @@ def test_lower_bound_beats_the_diameter_and_eccentricity_bounds():
 def test_shapes_are_checked():
     with pytest.raises(ValueError, match="p_to_q"):
         sample_gh_interval(np.zeros((3, 3)), np.zeros((2, 2)), [0, 1], [0, 1])
+
+
+def test_match_reports_the_interval_of_its_samples():
+    """``MatchResult.gh_interval``: the lower bound of the two sample sets' distance matrices,
+    below half the distortion of the correspondence found, snapped to the samples."""
+    import gromov
+    from gromov.gh import ShapeMetric
+    from gromov.shapes import grid, rolled_grid
+
+    x = ShapeMetric(grid(16, 16), "geodesic", resolution=None)
+    y = ShapeMetric(rolled_grid(16, 16), "geodesic", resolution=None)
+    r = gromov.match(x, y, "geodesic", n_samples=30)
+    lo, hi = r.gh_interval
+    P, Q = x.samples(30, 0), y.samples(30, 0)
+    assert lo == gh_lower_bound(x.distances[np.ix_(P, P)], y.distances[np.ix_(Q, Q)])
+    assert 0.0 <= lo <= hi < 0.5 * max(x.diameter, y.diameter)
+    from gromov.experiments.pairwise import gh_matrix
+
+    g = gh_matrix([x, y], "geodesic", n_samples=30, keep=[(0, 1)])
+    assert np.isnan(g.results[0, 1].gh_interval[0])

@@ -6,7 +6,7 @@ import pytest
 import gromov
 from gromov import Mesh, SearchOptions, match
 from gromov.gh import ShapeMetric
-from gromov.gmds import norm_value, parse_norm
+from gromov.gmds import SurfacePoints, norm_value, parse_norm
 from gromov.shapes import grid, rolled_grid, torus
 
 
@@ -685,3 +685,69 @@ def test_two_shapes_prepared_with_different_metrics_warn():
     with warnings.catch_warnings():
         warnings.simplefilter("error", GromovWarning)
         match(raw, same, n_samples=10)
+
+
+import gromov
+from gromov.gh import ShapeMetric
+from gromov.gmds import SurfacePoints
+
+
+def test_locate_tries_each_input_face_once_with_the_same_result(tosca_cat0):
+    """ShapeMetric.locate projects each point among the input faces around the input vertices
+    its three rings own, each face once: the same faces and coordinates as trying every
+    incident face of every candidate vertex (project_among)."""
+    from gromov._project import project_among
+    from gromov.resolution import gather, ring_candidates
+
+    s = ShapeMetric(tosca_cat0, "geodesic", resolution=1500)
+    rng = np.random.default_rng(0)
+    face = rng.integers(0, len(s.mesh.faces), 200)
+    bary = rng.dirichlet(np.ones(3), 200)
+    bary[:20] = np.eye(3)[rng.integers(0, 3, 20)]          # at vertices
+    bary[20:40, 0] = 0.0                                     # on edges
+    bary[20:40] /= bary[20:40].sum(1, keepdims=True)
+    pts = SurfacePoints(face, bary)
+    own_ptr, own_ids = s.owned
+    ring_ptr, ring = ring_candidates(s.mesh, s.mesh.faces[face].ravel())
+    f0, b0, _ = project_among(pts.positions(s.mesh.vertices, s.mesh.faces), s.input,
+                              *gather(own_ptr, own_ids, ring_ptr[::3], ring))
+    f1, b1, v1 = s.locate(pts)
+    np.testing.assert_array_equal(f1, f0)
+    np.testing.assert_array_equal(b1, b0)
+    assert not s._same_as_input                              # the projection ran
+
+
+def test_spaced_candidates_are_greedy_in_signature_order():
+    """_candidates: in the order of the signatures, each taken vertex farther than 5% of the
+    diameter from all taken before it, and every skipped vertex within it of one of them."""
+    from gromov.search import _candidates
+    from gromov.shapes import torus
+
+    s = ShapeMetric(torus(32, 16), "geodesic", resolution=None)
+    sig = s.descriptors[7]
+    got = _candidates(sig, s, 40)
+    D, r = s.distances, 0.05 * s.diameter
+    from gromov._arrays import argsort_stable
+
+    order = argsort_stable(np.abs(s.descriptors - sig).sum(1))
+    expect = []
+    for v in order:
+        if all(D[v, w] > r for w in expect):
+            expect.append(int(v))
+        if len(expect) == 40:
+            break
+    np.testing.assert_array_equal(got, expect)
+
+
+def test_anchor_rows_are_kept_for_the_samples_only():
+    from gromov.search import anchored_images, _anchored
+    from gromov.shapes import torus
+
+    s = ShapeMetric(torus(24, 10), "geodesic", resolution=None)
+    P = s.samples(20, 0)
+    rows = s._anchors(P)
+    assert s._anchors(P.copy()) is rows                      # kept per shape
+    Q = P[::-1].copy()
+    assert s._anchors(Q) is not s._anchors(Q)                # other vertices: afresh
+    d = s.distances[np.ix_(P[:5], P)]
+    np.testing.assert_array_equal(_anchored(*rows, d), anchored_images(s.distances, P, d))

@@ -169,3 +169,13 @@ def test_recognition_ranks_by_the_distortion_at_the_finer_scale():
     off = ~np.eye(4, dtype=bool)
     assert np.all(r.trimmed[off] > 0) and not np.allclose(r.trimmed, old.trimmed)
     assert np.array_equal(r.trimmed, r.trimmed.T)
+
+
+def test_main_names_import_from_the_experiments_package():
+    import gromov.experiments as ex
+    from gromov.experiments import gh_matrix, pairwise, roc
+    from gromov.experiments import reproduce as module
+
+    assert gh_matrix is pairwise.gh_matrix and roc is ex.recognition.roc
+    assert module.__name__ == "gromov.experiments.reproduce"   # the submodule, not the function
+    assert "gh_matrix" in dir(ex)

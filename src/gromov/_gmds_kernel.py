@@ -625,3 +625,28 @@ def place_and_descend_blas(dx, DY, start, max_sweeps, R, C, *, block=16, cap=32,
         _complete(dx, R, C, block)
         img = descend_blas(dx, DY, img, C, max_sweeps, cap=cap, ratio=ratio)
     return img, _sq_dist_sum(dx, DY, img)
+
+
+@njit(cache=True)
+def spaced_in_order(order, D, radius, k):
+    """Up to ``k`` vertices taken greedily in ``order``, each farther than ``radius`` from
+    every one taken before it (``D[v, w] > radius``; ``D`` symmetric): the first-sample
+    candidates of the initial search (:func:`gromov.search._candidates`)."""
+    n = order.shape[0]
+    free = np.ones(D.shape[0], np.bool_)   # per vertex: farther than radius from all taken
+    out = np.empty(k, np.int64)
+    taken = 0
+    i = 0
+    while taken < k:
+        while i < n and not free[order[i]]:
+            i += 1
+        if i == n:
+            break
+        v = order[i]
+        out[taken] = v
+        taken += 1
+        row = D[v]
+        for w in range(D.shape[0]):
+            if not row[w] > radius:
+                free[w] = False
+    return out[:taken]

@@ -18,8 +18,10 @@ import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numba import njit
 
-from ._project import project_among
+from ._arrays import readonly
+from ._project import _project_among
 from .errors import GromovWarning, MetricError
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
                    norm_value, parse_norm, trimmed_rms)
@@ -33,9 +35,9 @@ from .sampling import farthest_point_sampling
 from .search import (DEFAULT_COARSE_STAGES, DEFAULT_N_EXTEND, DEFAULT_N_STARTS,  # noqa: F401
                      DEFAULT_SEARCH_VERTICES, EXTEND_KEEP, EXTEND_ROUNDS, INVOLUTION_REPAIRS, INVOLUTION_TOL,
                      SIGNATURE_STARTS, SIGNATURE_WEIGHT, SYMMETRY_TOL, SearchOptions, _at_vertices,
-                     _candidates, _on_subset, _orient, _Search, _self_reflection, _Starts, _trimmed_descent,
-                     anchored_images, greedy_init, initial_pairs, pair_orientation, pairs_orientation,
-                     search_subsets, signature_mismatch)
+                     _anchor_rows, _candidates, _on_subset, _orient, _Search, _self_reflection, _Starts,
+                     _trimmed_descent, anchored_images, greedy_init, initial_pairs, pair_orientation,
+                     pairs_orientation, search_subsets, signature_mismatch)
 
 __all__ = ["ShapeMetric", "MatchResult", "match", "SearchOptions"]
 
@@ -129,6 +131,8 @@ class ShapeMetric:
         self.solver = metric_solver(self.working.mesh, metric, **self.metric_options)
         self._surface: SurfaceDistance | None = None
         self._samples: dict = {}
+        self._anchor_cache: dict = {}   # (rows, column sums of squares) at the samples, per samples key
+        self._rings = None   # CSR of each working vertex and its neighbours (locate)
         self._descriptors: np.ndarray | None = None
         self._diameter: float | None = None
         self._finite: bool | None = None
@@ -274,6 +278,18 @@ class ShapeMetric:
             self._samples[key] = farthest_point_sampling(self.distances, n, seed=seed).indices
         return self._samples[key]
 
+    def _anchors(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(distances[P], column sums of distances[P]**2)``: what the initial search reads of
+        this shape to anchor images on it (:func:`gromov.search.anchored_images`); kept for its
+        farthest point samples (:meth:`samples`), computed afresh for other vertices."""
+        P = np.asarray(P, dtype=np.int64)
+        for key, samples in self._samples.items():
+            if samples is P or np.array_equal(samples, P):
+                if key not in self._anchor_cache:
+                    self._anchor_cache[key] = tuple(readonly(a) for a in _anchor_rows(self.distances, samples))
+                return self._anchor_cache[key]
+        return _anchor_rows(self.distances, P)
+
     def subset(self, k: int) -> np.ndarray:
         """``k`` farthest point samples (seed 0; all vertices if fewer): the vertex subset an
         initial search of :func:`match` runs on (:class:`SearchOptions`' ``coarse_stages``,
@@ -307,13 +323,34 @@ class ShapeMetric:
         if self._same_as_input:
             face, bary = np.asarray(pts.face, dtype=np.int64), np.asarray(pts.bary, dtype=np.float64)
         else:
-            pos = pts.positions(self.mesh.vertices, self.mesh.faces)
-            own_ptr, own_ids = self.owned
-            corners = self.mesh.faces[np.asarray(pts.face, dtype=np.int64)]   # (p, 3)
-            ring_ptr, ring = ring_candidates(self.mesh, corners.ravel())   # 3 rings per point
-            face, bary, _ = project_among(pos, self.input, *gather(own_ptr, own_ids, ring_ptr[::3], ring))
+            face, bary = self._project(pts)
         vertex = self.input.faces[face, np.argmax(bary, axis=1)]
         return face, bary, self.input.input_ids[vertex]
+
+    def _project(self, pts: SurfacePoints) -> tuple[np.ndarray, np.ndarray]:
+        """``(face, bary)`` on the input mesh of points on the working mesh: what
+        :func:`gromov._project.project_among` gives for the input vertices that each point's
+        three rings own, with each input face tried once, where first met (the same closest
+        point: a face tried again can only tie with itself)."""
+        if self._rings is None:   # per shape: each working vertex, then its neighbours
+            n = self.mesh.n_vertices
+            self._rings = ring_candidates(self.mesh, np.arange(n))
+        own_ptr, own_ids = self.owned
+        corners = self.mesh.faces[np.asarray(pts.face, dtype=np.int64)].ravel()   # 3 per point
+        ring_ptr, ring = gather(*self._rings, np.arange(len(corners) + 1), corners)
+        cand_ptr, cand = gather(own_ptr, own_ids, ring_ptr[::3], ring)   # input vertices per point
+        vf_ptr, vf_ids = self.input.vertex_faces
+        face_ptr, faces = _first_faces(cand_ptr, cand, vf_ptr, vf_ids, len(self.input.faces))
+        if (face_ptr[1:] == face_ptr[:-1]).any():
+            i = int(np.argmax(face_ptr[1:] == face_ptr[:-1]))
+            raise ValueError(f"point {i} has no candidate vertex with a face")
+        one = np.arange(len(faces) + 1, dtype=np.int64)   # each candidate is one face
+        pos = np.ascontiguousarray(pts.positions(self.mesh.vertices, self.mesh.faces), dtype=np.float64)
+        face, bary, _ = _project_among(*(readonly(a) for a in (
+            pos, np.ascontiguousarray(self.input.vertices, dtype=np.float64),
+            np.ascontiguousarray(self.input.faces, dtype=np.int64), one, faces, face_ptr,
+            np.ascontiguousarray(one[:-1]))))
+        return face, bary
 
     def __repr__(self) -> str:
         return (f"ShapeMetric(metric={self.metric!r}, working={self.mesh.n_vertices} of "
@@ -374,6 +411,14 @@ class MatchResult:
         and columns are first X's M samples (on Y: their images), then Y's K samples (on X:
         their images), in the order of ``x_samples`` and ``y_samples``. Where a shape's
         topology changed, the pairs whose paths run through the change can stand out.
+    gh_interval : (float, float)
+        A certified interval ``(lower, upper)`` around the Gromov-Hausdorff distance between
+        the two sample sets, :math:`d_{GH}(P, Q)` with the shapes' distances (the metric of the
+        match, the L-infinity GH; :mod:`gromov.bounds`): the lower bound from the sets of
+        distances each sample sees (Mémoli 2011, §6), which holds whatever correspondence was
+        found; the upper bound half the largest distortion of the correspondence found, each
+        image snapped to the nearest sample of the other shape. Only :func:`match` computes it
+        (NaN from :func:`gromov.experiments.gh_matrix`, whose pairs skip it).
     """
 
     distance: float
@@ -402,6 +447,7 @@ class MatchResult:
     ranking_distance: float = float("nan")
     pair_distortion: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     history: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    gh_interval: tuple[float, float] = (float("nan"), float("nan"))
     x_to_y_dense_face: np.ndarray | None = field(repr=False, default=None)
     x_to_y_dense_bary: np.ndarray | None = field(repr=False, default=None)
     x_to_y_dense_vertex: np.ndarray | None = field(repr=False, default=None)
@@ -580,7 +626,7 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     options = _upgrade_options({**deprecated, "search": search}, "match")
     return _match(X, Y, metric, n_samples=n_samples, norm=norm, solver=solver, init=init, seed=seed,
                   resolution=resolution, metric_options=metric_options, radius=radius,
-                  orientation=orientation, dense=dense, **options)
+                  orientation=orientation, dense=dense, interval=True, **options)
 
 
 #: Keywords of :func:`match` that moved into :class:`SearchOptions`.
@@ -624,11 +670,12 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
            metric_options: dict | None = None, radius: float | None = None, orientation: str = "prefer",
            search: SearchOptions = SearchOptions(), dense: bool | str = False,
            rank_tau_scale: float | None = None, rank_residual: str = "difference",
-           as_prepared: bool = False) -> MatchResult:
+           as_prepared: bool = False, interval: bool = False) -> MatchResult:
     """:func:`match`, and what recognition ranks by (:func:`gromov.experiments.gh_matrix`):
     ``ranking_distance`` measured with the heat distance at ``rank_tau_scale`` times the
     diffusion time, of ``rank_residual`` (:func:`ranking_value`). ``as_prepared``: use prepared
-    shapes in their own metric (recognition's units) instead of the correspondence's."""
+    shapes in their own metric (recognition's units) instead of the correspondence's.
+    ``interval``: compute :attr:`MatchResult.gh_interval`."""
     t0 = time.perf_counter()
     p = parse_norm(norm)
     _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residual)
@@ -656,6 +703,8 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
     xy_face, xy_bary, xy_vertex = locate(sy, fit.img_p)
     yx_face, yx_bary, yx_vertex = locate(sx, fit.img_q)
     extra = _dense_fields(sx, sy, P, Q, fit, dense) if dense else {}
+    if interval:
+        extra["gh_interval"] = _gh_interval(sx, sy, P, Q, fit, discrete)
     norm_name = "l2" if p == 2 else ("linf" if np.isinf(p) else f"p:{p:g}")
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
@@ -666,6 +715,22 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
         n_iter=int(fit.n_iter), converged=bool(fit.converged), seconds=time.perf_counter() - t0,
         orientation=fit.orientation, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
         ranking_distance=ranking, pair_distortion=residual, history=np.asarray(fit.history), **extra)
+
+
+def _gh_interval(sx, sy, P, Q, fit: _Fit, discrete: bool) -> tuple[float, float]:
+    """:func:`gromov.bounds.sample_gh_interval` of the samples, each image snapped to the
+    nearest sample of the other shape (in that shape's metric)."""
+    from .bounds import sample_gh_interval
+
+    DX, DY = sx.distances, sy.distances
+
+    def vertices(s, img):
+        return np.asarray(img, dtype=np.int64) if discrete else img.vertex(s.mesh.faces)
+
+    p_to_q = np.argmin(DY[np.ix_(vertices(sy, fit.img_p), Q)], axis=1)
+    q_to_p = np.argmin(DX[np.ix_(vertices(sx, fit.img_q), P)], axis=1)
+    lower, upper = sample_gh_interval(DX[np.ix_(P, P)], DY[np.ix_(Q, Q)], p_to_q, q_to_p)
+    return float(lower), float(upper)
 
 
 def _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residual) -> None:
@@ -946,3 +1011,29 @@ def _as_shape(s, metric, resolution, metric_options, name: str, as_prepared: boo
 def _file_faces(s: "ShapeMetric") -> np.ndarray | None:
     """Faces of the input mesh in file vertex ids (None for a point cloud)."""
     return s.input.input_ids[s.input.faces] if s.has_faces else None
+
+
+@njit(cache=True)
+def _first_faces(ptr, ids, vf_ptr, vf_ids, n_faces):
+    """CSR ``(indptr, faces)``: for each group ``ids[ptr[i]:ptr[i + 1]]`` of vertices, the faces
+    incident to them (``vf_ptr``, ``vf_ids``: a mesh's vertex-face CSR), each once, in the
+    order first met."""
+    total = 0
+    for k in range(ids.shape[0]):
+        total += vf_ptr[ids[k] + 1] - vf_ptr[ids[k]]
+    n = ptr.shape[0] - 1
+    out = np.empty(total, np.int64)
+    out_ptr = np.zeros(n + 1, np.int64)
+    seen = np.full(n_faces, -1, np.int64)   # the last group that met each face
+    c = 0
+    for i in range(n):
+        for k in range(ptr[i], ptr[i + 1]):
+            v = ids[k]
+            for j in range(vf_ptr[v], vf_ptr[v + 1]):
+                f = vf_ids[j]
+                if seen[f] != i:
+                    seen[f] = i
+                    out[c] = f
+                    c += 1
+        out_ptr[i + 1] = c
+    return out_ptr, out[:c]

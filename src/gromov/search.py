@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import _gmds_kernel as _kernel
-from ._arrays import argmin_stable, argsort_stable
+from ._arrays import argmin_stable, argsort_stable, readonly
 from .gmds import SurfacePoints, SymmetricGMDS
 from .orientation import orientation_agreements
 
@@ -237,15 +237,17 @@ class _Search:
         # per stage: (cost, images as a tuple of ids of ``work``), from the lowest cost, costs
         # equal within TIE_RTOL in candidate order (a tie that rounding cannot flip)
         self.coarse = []
-        runs = [(c, vertices, False) for c, vertices in stages]
+        # each stage's vertex subset with the candidates, once for both of its runs
+        subsets = [_on_subset(work, vertices, candidates) for _, vertices in stages]
+        runs = [(c, s, False) for s, (c, _) in enumerate(stages)]
         if signature_costs is not None:  # each stage again, with the signatures' costs
             if self.dom is not None:
                 signature_costs = signature_costs[:, self.dom]
-            runs += [(c, vertices, True) for c, vertices in stages]
-        for c, vertices, signed in runs:
+            runs += [(c, s, True) for s, (c, _) in enumerate(stages)]
+        for c, stage, signed in runs:
             c = min(int(c), len(self.dx_pp))
             head = np.ascontiguousarray(self.dx_pp[:c, :c])
-            sub = _on_subset(work, vertices, candidates)
+            sub = subsets[stage]
             U, k = None, len(candidates)
             if signed:  # as if each of a sample's c - 1 distances were off by its mismatch
                 U, k = (c - 1) * signature_costs[:c], min(k, SIGNATURE_STARTS)
@@ -363,7 +365,8 @@ def _on_subset(DY: np.ndarray, vertices, candidates: np.ndarray):
     dom = np.union1d(np.asarray(vertices, dtype=np.int64), candidates)
     if len(dom) >= len(DY):
         return None
-    return dom, np.ascontiguousarray(DY[np.ix_(dom, dom)], dtype=np.float64), np.searchsorted(dom, candidates)
+    block = np.asarray(DY, dtype=np.float64).take(dom, axis=0).take(dom, axis=1)   # rows, then columns
+    return dom, block, np.searchsorted(dom, candidates)
 
 
 def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.ndarray:
@@ -374,8 +377,19 @@ def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.nd
     two-sided correspondence start on the same branch (e.g. the same left/right choice).
     ``DX`` must be symmetric (its rows ``P`` are read for its columns).
     """
+    return _anchored(*_anchor_rows(DX, P), DY_rows)
+
+
+def _anchor_rows(DX: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(DX[P], column sums of DX[P]**2)``: what :func:`anchored_images` reads of X for the
+    anchors ``P`` (``ShapeMetric._anchors`` keeps them for a shape's samples)."""
     At = DX[P]                                               # (M, n_X) = DX[:, P].T
-    cost = (At * At).sum(0)[None, :] - 2.0 * (DY_rows @ At)  # + |d|^2, constant per row
+    return At, (At * At).sum(0)
+
+
+def _anchored(At: np.ndarray, sq: np.ndarray, DY_rows: np.ndarray) -> np.ndarray:
+    """:func:`anchored_images` from :func:`_anchor_rows`."""
+    cost = sq[None, :] - 2.0 * (DY_rows @ At)  # + |d|^2, constant per row
     return argmin_stable(cost, axis=1)
 
 
@@ -383,18 +397,8 @@ def _candidates(signature: np.ndarray, target: "ShapeMetric", k: int) -> np.ndar
     """The ``k`` vertices of ``target`` with the closest signatures, at least 5% of the diameter apart."""
     cost = np.abs(target.descriptors - signature).sum(axis=1)
     order = argsort_stable(cost)
-    radius = 0.05 * target.diameter
-    D = target.distances
-    free = np.ones(len(order), dtype=bool)  # free[i]: order[i] is farther than radius from all chosen
-    chosen: list[int] = []
-    while len(chosen) < k:
-        i = int(np.argmax(free))
-        if not free[i]:
-            break
-        v = int(order[i])
-        chosen.append(v)
-        free &= D[v][order] > radius  # D is symmetric: a row, not a column
-    return np.asarray(chosen, dtype=np.int64)
+    # greedily in that order, each farther than the radius from those chosen before it
+    return _kernel.spaced_in_order(order, readonly(target.distances), 0.05 * target.diameter, int(k))
 
 
 def initial_pairs(sx: "ShapeMetric", sy: "ShapeMetric", P: np.ndarray, Q: np.ndarray, *,
@@ -445,8 +449,9 @@ class _Starts:
 
     def _pairs(self, fwd, bwd):
         DX, DY, P, Q = self.sx.distances, self.sy.distances, self.P, self.Q
-        return ([(f, anchored_images(DX, P, DY[np.ix_(Q, f)])) for f in fwd]
-                + [(anchored_images(DY, Q, DX[np.ix_(P, b)]), b) for b in bwd])
+        ax, ay = self.sx._anchors(P), self.sy._anchors(Q)   # per shape, for its samples
+        return ([(f, _anchored(*ax, DY[np.ix_(Q, f)])) for f in fwd]
+                + [(_anchored(*ay, DX[np.ix_(P, b)]), b) for b in bwd])
 
     def plain(self, all_starts: bool):
         """Pairs of the extended starts: all of them, or each direction's best."""
