@@ -565,15 +565,20 @@ def _place_and_descend(dx, DY, start, max_sweeps, R, C, U, block, cap, ratio):
     return img, f
 
 
+#: Interleaved slices of the candidates per thread in :func:`coarse_starts`.
+CHUNKS_PER_THREAD = 4
+
+
 def coarse_starts(dx, DY, candidates, max_sweeps, U=None):
     """:func:`place_and_descend` from each candidate image of the first sample:
     images ``(s, m)`` and their summed squared distortions ``(s,)`` (plus their per-image costs
     ``U``, if given).
 
     The candidates are independent: with more than one numba thread
-    (``numba.get_num_threads()``) they are handed out one by one to that many Python threads
-    running the compiled kernel without the GIL, with the same results as one after the
-    other. Threads rather than a ``prange`` loop: the parallel kernel took most of the
+    (``numba.get_num_threads()``) they are split into ``CHUNKS_PER_THREAD`` interleaved
+    slices per thread, handed out to that many Python threads running the compiled kernel
+    without the GIL as they come free, with the same results as one after the other.
+    Threads rather than a ``prange`` loop: the parallel kernel took most of the
     first run's compilation (45 of 69 s of a first ``gromov.match``), and it is never entered
     in a forked worker of :mod:`gromov.experiments.pairwise`, which numba's OpenMP layer
     aborts.
@@ -588,11 +593,16 @@ def coarse_starts(dx, DY, candidates, max_sweeps, U=None):
     if threads > 1:
         from concurrent.futures import ThreadPoolExecutor
 
-        def one(q):   # candidate q alone (their costs differ: handed out one by one)
-            _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, q, s, U)
+        # CHUNKS_PER_THREAD interleaved slices per thread, handed out as threads come free:
+        # the candidates' costs differ, and one task per candidate made the hand-outs, not the
+        # work, most of the time on small shapes
+        tasks = min(s, CHUNKS_PER_THREAD * threads)
+
+        def part(q):   # candidates q, q + tasks, q + 2 tasks, ...
+            _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, q, tasks, U)
 
         with ThreadPoolExecutor(threads) as pool:
-            for _ in pool.map(one, range(s)):
+            for _ in pool.map(part, range(tasks)):
                 pass
     else:
         _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, 0, 1, U)
