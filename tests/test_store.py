@@ -85,6 +85,12 @@ def test_a_stored_shape_matches_bit_for_bit(tmp_path, monkeypatch):
     monkeypatch.undo()
     _assert_same_result(got, _match(*fresh, "diffusion", as_prepared=True, **opts))
     assert np.isfinite(got.ranking_distance) and got.has_dense
+    # the dense maps' Laplace-Beltrami basis is the heat kernel's own eigenpairs, read back
+    from gromov.dense import _basis
+
+    for a, b in zip(stored, fresh):
+        np.testing.assert_array_equal(_basis(a, 40)[0], _basis(b, 40)[0])
+        np.testing.assert_array_equal(a.ranking_surface(0.25)[0].embedding, b.ranking_surface(0.25)[0].embedding)
 
 
 def test_a_stored_point_cloud_matches_bit_for_bit(tmp_path):
@@ -344,3 +350,162 @@ def test_two_processes_index_one_store_at_once(tmp_path, sheet_files):
     assert sorted(os.listdir(store / "entries")) == sorted(e.file.split("/")[1] for e in s.entries())
     s.shapes(files, "geodesic", metric_options={}, rank_tau_scale=0.5)
     assert s.computed == 0 and s.reused == len(files)
+
+
+# --------------------------------------------------------------------------- gromov match --store
+def _refuse_metrics(monkeypatch):
+    """Make computing any dense metric, or any store entry, fail the test."""
+    from gromov.metrics.diffusion import _SpectralDiffusion
+
+    def refuse(*a, **k):
+        pytest.fail("a metric was computed")
+
+    for cls, name in ((_SpectralDiffusion, "_spectral"), (_SpectralDiffusion, "_rows"), (GeodesicSolver, "_rows"),
+                      (ShapeStore, "_compute")):
+        monkeypatch.setattr(cls, name, refuse)
+
+
+def test_match_with_a_store_reads_both_shapes_back_and_matches_bit_for_bit(tmp_path, sheet_files, capsys,
+                                                                            monkeypatch):
+    """``gromov match --store``: the first run computes both shapes in the correspondence's metric
+    options (normalised heat units) and adds them, the second reads both back and computes no
+    metric; the correspondence and the dense maps are those without a store, array for array."""
+    x, y = sheet_files[:2]
+    d = str(tmp_path / "s")
+
+    def run(name, *extra):
+        out = tmp_path / f"{name}.npz"
+        assert main(["match", x, y, "--samples", "15", "--dense", "--out", str(out), "--json", *extra]) == 0
+        r = json.loads(capsys.readouterr().out)
+        with np.load(out) as z:
+            return r, {k: z[k] for k in z.files}
+
+    ref, ref_arrays = run("plain")
+    first, a = run("first", "--store", d)
+    assert first.pop("store") == {"path": d, "shapes_read": 0, "shapes_computed": 2}
+    entries = ShapeStore(d).entries()
+    assert len(entries) == 2 and all(e.options["metric_options"]["units"] == "normalized" for e in entries)
+    _refuse_metrics(monkeypatch)
+    second, b = run("second", "--store", d)
+    monkeypatch.undo()
+    assert second.pop("store") == {"path": d, "shapes_read": 2, "shapes_computed": 0}
+    for r in (first, second):
+        assert {k: v for k, v in r.items() if k != "seconds"} == {k: v for k, v in ref.items() if k != "seconds"}
+    assert "x_to_y_dense_vertex" in ref_arrays
+    for arrays in (a, b):
+        assert arrays.keys() == ref_arrays.keys()
+        for k, v in ref_arrays.items():
+            np.testing.assert_array_equal(arrays[k], v, err_msg=k)
+
+
+def test_match_with_a_store_recomputes_a_file_changed_since_indexing(tmp_path, capsys):
+    """The geodesic entries of ``gromov index`` serve ``gromov match`` (a correspondence measures
+    geodesic distances as recognition does); a file changed since is computed again, with one
+    warning, and matched as it is now."""
+    x, y = tmp_path / "x.off", tmp_path / "y.off"
+    gromov.save(grid(25, 13), x)
+    gromov.save(rolled_grid(25, 13), y)
+    d = str(tmp_path / "s")
+    assert main(["index", str(x), str(y), "--store", d, "--metric", "geodesic", "-q"]) == 0
+    cmd = ["match", str(x), str(y), "--metric", "geodesic", "--samples", "15", "--json"]
+    assert main([*cmd, "--store", d]) == 0
+    assert json.loads(capsys.readouterr().out)["store"] == {"path": d, "shapes_read": 2, "shapes_computed": 0}
+    gromov.save(rolled_grid(25, 13, width=2.5), y)   # another shape under the same name
+    assert main([*cmd, "--store", d]) == 0
+    out, err = capsys.readouterr()
+    r = json.loads(out)
+    assert r.pop("store") == {"path": d, "shapes_read": 1, "shapes_computed": 1}
+    lines = [line for line in err.splitlines() if line.startswith("gromov: warning: ")]
+    assert len(lines) == 1 and "y.off changed since it was indexed" in lines[0]
+    assert main(cmd) == 0   # the changed file's match, not the stored shape's
+    ref = json.loads(capsys.readouterr().out)
+    assert {k: v for k, v in r.items() if k != "seconds"} == {k: v for k, v in ref.items() if k != "seconds"}
+    assert len(ShapeStore(d).entries()) == 2 and ShapeStore(d).verify() == []
+
+
+# --------------------------------------------------------------------------- gromov reproduce --store
+def _tiny_reproduce(monkeypatch):
+    """``reproduce`` on the synthetic set at its smallest: two classes, 300 vertices, 8 samples
+    (about 8 s a run; the recognition's raw heat units and the correspondence's normalised
+    ones, so both variants of every shape are stored)."""
+    from dataclasses import replace
+
+    from gromov.experiments import reproduce as rp
+
+    full = rp.settings_for
+    two = {"cat": 1, "dog": 1}
+    monkeypatch.setattr(rp, "settings_for", lambda *a, **k: replace(full(*a, **k), resolution=300, n_samples=8,
+                                                                      experiment1=two, experiment2=two))
+    return rp.reproduce
+
+
+def _same_results(a: dict, b: dict) -> None:
+    skip = {"timings", "seconds_total", "date", "store"}
+    assert a.keys() == b.keys()
+    for k in a.keys() - skip:
+        if k == "recognition":
+            for exp in a[k]:
+                for m in a[k][exp]:
+                    x, y = a[k][exp][m], b[k][exp][m]
+                    if isinstance(x, dict):
+                        x, y = ({n: v for n, v in z.items() if n != "seconds"} for z in (x, y))
+                    assert x == y, (exp, m)
+        else:
+            assert a[k] == b[k], k
+
+
+def test_reproduce_with_a_store_computes_no_metric_twice(tmp_path, monkeypatch):
+    """A second ``reproduce`` with the store reads every shape's metrics (clean, welded and
+    holed shapes; recognition and correspondence options), the recognition's pairs and the
+    ground truth's geodesic rows back, computes none of them, and gives the results of a
+    run without a store."""
+    reproduce = _tiny_reproduce(monkeypatch)
+    store = tmp_path / "store"
+    ref = reproduce(None, tmp_path / "plain", quick=True, jobs=1, quiet=True)
+    first = reproduce(None, tmp_path / "first", quick=True, jobs=1, quiet=True, store=store)
+    # 10 shapes (6 per experiment, the 2 references in both): geodesic and raw heat for
+    # recognition, normalised heat for the correspondence (the references' read back for the
+    # second experiment's correspondence)
+    assert first["store"]["shapes_computed"] == 30 and first["store"]["shapes_read"] == 2 and ref["store"] is None
+    n_pairs = len(ShapeStore(store).pairs())
+    _refuse_metrics(monkeypatch)
+    second = reproduce(None, tmp_path / "second", quick=True, jobs=1, quiet=True, store=store)
+    monkeypatch.undo()
+    assert second["store"]["shapes_computed"] == 0 and second["store"]["shapes_read"] == 32
+    # every pair recorded but those whose full correspondence is kept (4 per experiment and metric)
+    assert second["store"]["pairs_read"] == n_pairs - 16 > 0
+    for r in (first, second):
+        _same_results(r, ref)
+        assert json.loads((tmp_path / "second" / "results.json").read_text())["store"] == second["store"]
+    s = ShapeStore(store)
+    assert s.verify() == [] and len(s.entries()) == 30 and len(s.pairs()) == n_pairs
+    with pytest.raises(ValueError, match="inside out"):
+        reproduce(None, tmp_path / "second", quick=True, jobs=1, quiet=True, store=tmp_path / "second" / "s")
+    assert main(["reproduce", "--out", str(tmp_path / "o"), "--store", str(tmp_path / "o" / "s"), "-q"]) == 2
+    assert not (tmp_path / "o").exists()
+
+
+def test_damaged_ground_truth_rows_are_reported_and_computed_again(tmp_path, caplog):
+    from gromov.experiments.reproduce import ROWS_EXTRA, _save_rows, _stored_rows
+    from gromov.metrics import metric_solver
+
+    mesh = grid(13, 7)
+    store = ShapeStore(tmp_path)
+    rows = _stored_rows(store, mesh, metric_solver(mesh, "geodesic"))
+    want = rows.from_sources([3, 50, 7])
+    _save_rows(store, rows)
+    kept = _stored_rows(store, mesh, metric_solver(mesh, "geodesic"))
+    assert sorted(kept.rows) == [3, 7, 50] and kept.n_stored == 3
+    kept.solver = None   # read back, not computed
+    np.testing.assert_array_equal(kept.from_sources([3, 50, 7]), want)
+    # another mesh: other rows
+    assert _stored_rows(store, grid(13, 8), metric_solver(grid(13, 8), "geodesic")).rows == {}
+    arrays = store.extra(rows.key, ROWS_EXTRA)
+    arrays["rows"][1, 5] += 1e-9   # altered: its checksum no longer matches
+    store.put_extra(rows.key, ROWS_EXTRA, arrays)
+    with caplog.at_level(logging.WARNING):
+        again = _stored_rows(store, mesh, metric_solver(mesh, "geodesic"))
+    assert "damaged" in caplog.text and again.rows == {}
+    np.testing.assert_array_equal(again.from_sources([3, 50, 7]), want)
+    _save_rows(store, again)
+    assert _stored_rows(store, mesh, metric_solver(mesh, "geodesic")).n_stored == 3

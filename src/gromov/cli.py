@@ -390,16 +390,27 @@ def cmd_match(args) -> int:
     from .metrics.diffusion import correspondence_options
 
     options = correspondence_options(args.metric, _metric_options(args))
-    inputs = [_load(path, args) for path in (args.x, args.y)]
-    _check_neighbors(args, inputs)
-    shapes = [ShapeMetric(shape, args.metric, resolution=args.resolution, metric_options=options)
-              for shape in inputs]
+    store, handler = _open_store(args)
+    if store is None:
+        inputs = [_load(path, args) for path in (args.x, args.y)]
+        _check_neighbors(args, inputs)
+        shapes = [ShapeMetric(shape, args.metric, resolution=args.resolution, metric_options=options)
+                  for shape in inputs]
+    else:   # each shape as match measures it: read from the store, or loaded, computed and added
+        try:
+            if getattr(args, "neighbors", None) is not None:   # (a user error found before any metric)
+                _check_neighbors(args, [_load(path, args) for path in (args.x, args.y)])
+            shapes = store.shapes([args.x, args.y], args.metric, resolution=args.resolution,
+                                  metric_options=options, progress=not (args.quiet or args.json))
+        finally:
+            _close_store(store, handler)
     for path, s in zip((args.x, args.y), shapes):
         if args.samples > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} "
                              f"vertices of the working {'mesh' if s.has_faces else 'point set'} of {path}")
         _check_pieces(args, path, s.mesh)
-    _check_memory([s.mesh.n_vertices for s in shapes], f"--resolution {args.resolution}")
+    if store is None:   # (a store's shapes have their metrics already)
+        _check_memory([s.mesh.n_vertices for s in shapes], f"--resolution {args.resolution}")
     dense = bool(args.dense or args.map or args.html)
     if dense and args.dense == "placed":
         dense = "placed"
@@ -425,7 +436,7 @@ def cmd_match(args) -> int:
             import matplotlib  # noqa: F401
         except ImportError:
             raise _UserError("--plot needs matplotlib: pip install 'gromov[plot]'") from None
-    for path, s in zip((args.x, args.y), shapes):
+    for path, s in zip((args.x, args.y), shapes if store is None else ()):
         _status(args, f"{args.metric} metric of {path} ({s.mesh.n_vertices} working vertices)")
         s.distances
     for path, s in zip((args.x, args.y), shapes):
@@ -451,8 +462,10 @@ def cmd_match(args) -> int:
 
         write_match_html(shapes[0].input, shapes[1].input, r, args.html,
                          titles=(Path(args.x).name, Path(args.y).name))
+    stored = None if store is None else {"path": args.store, "shapes_read": store.reused,
+                                         "shapes_computed": store.computed}
     if args.json:   # the metric's options too: the distance's units depend on them
-        print(_dumps({**r.to_dict(), "metric_options": options}))
+        print(_dumps({**r.to_dict(), "metric_options": options, **({} if stored is None else {"store": stored})}))
     else:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
               f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
@@ -471,6 +484,8 @@ def cmd_match(args) -> int:
         if dense:
             print(f"  dense maps: {len(r.x_to_y_dense_vertex)} vertices of X on Y, "
                   f"{len(r.y_to_x_dense_vertex)} of Y on X")
+        if stored is not None:
+            print(f"  store {args.store}: {store.reused} of 2 shapes read from it, {store.computed} computed")
         for f in (args.out, args.map, args.plot, args.html):
             if f:
                 print(f"  wrote {f}")
@@ -973,12 +988,20 @@ def cmd_reproduce(args) -> int:
         data = data_root(args.data or None)   # "--data" alone: $GROMOV_DATA or ../shared/data
     command = "gromov reproduce " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 else "gromov reproduce"
     diffusion = _diffusion_options(args)
-    r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
-                  command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
-                  classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by,
-                  rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual,
-                  pose_stretch=args.pose_stretch,
-                  local_scaling=LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling)
+    if args.store is not None and Path(args.store).resolve().is_relative_to(Path(args.out).resolve()):
+        raise _UserError(f"--store {args.store} is inside --out {args.out}, which is replaced as a whole "
+                         "when the run is complete: keep the store outside it")
+    store, handler = _open_store(args)
+    try:
+        r = reproduce(data, args.out, quick=args.quick, jobs=args.jobs, seed=args.seed, quiet=args.quiet,
+                      command=command.strip(), diffusion=diffusion, weld_join=args.weld_join,
+                      classes=args.classes, topkids=not args.no_topkids, rank_by=args.rank_by,
+                      rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual,
+                      pose_stretch=args.pose_stretch,
+                      local_scaling=LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling,
+                      store=store)
+    finally:
+        _close_store(store, handler)
     def paper(key):   # the paper's number for a results key (report.PAPER is the one source)
         a, b, c = key.split(".")
         return PAPER["eer"][b][c] if a == "eer" else PAPER["correspondence"][b][
@@ -992,6 +1015,10 @@ def cmd_reproduce(args) -> int:
     print("  diffusion metric: " + words(opts)
           + ("" if copts == opts else f" (recognition); {words(copts)} (correspondence)")
           + f"; welds: {r['params']['weld_join']}")
+    if r["store"] is not None:
+        st = r["store"]
+        print(f"  store {args.store}: {st['shapes_read']} shapes read from it, {st['shapes_computed']} "
+              f"computed; {st['pairs_read']} pairs read")
     other = other_classes(r)
     if other:
         print(f"  classes {', '.join(other)}: the paper's numbers are for {', '.join(PAPER_CLASSES)}")
@@ -1089,6 +1116,10 @@ def _match_parser(sub) -> None:
                    help="write one self-contained page showing both shapes side by side, to turn "
                         "and zoom: X's colours carried to Y by the dense map, and the sample "
                         "correspondences (implies --dense; needs plotly)")
+    q.add_argument("--store", default=None, metavar="DIR",
+                   help="shape store (gromov index): read each shape's working mesh and metric, "
+                        "in the correspondence's metric options, from it or add them (created if "
+                        "missing); the same match as without it")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)
     q.set_defaults(func=cmd_match)
@@ -1261,6 +1292,11 @@ def _reproduce_parser(sub) -> None:
     q.add_argument("--pose-stretch", type=float, default=0.0, metavar="S",
                    help="synthetic set only: stretch its poses so that they are not isometric, as "
                         "TOSCA's are not (0.1: geodesic distances change by 2.4-6.5%%; default 0)")
+    q.add_argument("--store", default=None, metavar="DIR",
+                   help="shape store (created if missing; not inside --out): read every shape's "
+                        "metrics, the recognition's pairs and the correspondence error's geodesic "
+                        "rows from it or add them, so that a second run computes no metric again; "
+                        "the same results as without it")
     q.set_defaults(func=cmd_reproduce)
 
 

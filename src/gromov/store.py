@@ -5,7 +5,8 @@ computes once per shape are kept in one ``.npz`` file per shape and set of optio
 documented format), catalogued in an SQLite database (``catalogue.sqlite``) that also records
 pair results as they finish, so that work over a collection of shapes is done once and an
 interrupted run continues where it stopped (:func:`gromov.experiments.gh_matrix`'s ``store``,
-``gromov index`` and ``gromov pairwise --store``).
+``gromov index``, ``gromov pairwise --store``, ``gromov match --store`` and
+``gromov reproduce --store``).
 
 Layout of a store folder::
 
@@ -225,6 +226,14 @@ def _entry_arrays(s: ShapeMetric, rank_tau_scale: float | None) -> dict:
     if ranking is not None:
         out.update(ranking_tau_scale=np.float64(rank_tau_scale), ranking_embedding=ranking[0].embedding,
                    ranking_diameter=np.float64(ranking[1]))
+    inner = getattr(s.solver, "inner", s.solver)   # through a hole-filling wrapper
+    if getattr(inner, "_psi", None) is not None and inner.eigenvalues is not None:
+        # a spectral metric's eigenpairs: other diffusion times and the dense maps' basis
+        # (gromov.dense) are taken from them, as from a fresh shape's
+        out.update(spectral_embedding=inner._psi, spectral_eigenvalues=inner.eigenvalues,
+                   spectral_truncation_bound=np.float64(inner.truncation_bound))
+        if getattr(inner, "_basis", None) is not None:
+            out.update(spectral_basis_eigenvalues=inner._basis[0], spectral_basis=inner._basis[1])
     return out
 
 
@@ -255,6 +264,17 @@ def _shape_from_arrays(a: dict) -> ShapeMetric:
     if "ranking_embedding" in a:
         s._ranking[float(a["ranking_tau_scale"])] = (EmbeddedDistance(s.mesh, a["ranking_embedding"]),
                                                       float(a["ranking_diameter"]))
+    if "spectral_embedding" in a:
+        inner = getattr(s.solver, "inner", s.solver)
+        psi = a["spectral_embedding"]
+        if not hasattr(inner, "_psi") or len(psi) != inner.n_vertices:
+            raise StoreError(f"a spectral embedding of {len(psi)} rows for a {type(inner).__name__} of "
+                             f"{inner.n_vertices} vertices")
+        inner._psi = _readonly(psi)
+        inner.eigenvalues = a["spectral_eigenvalues"]
+        inner.truncation_bound = float(a["spectral_truncation_bound"])
+        if "spectral_basis" in a:
+            inner._basis = (a["spectral_basis_eigenvalues"], a["spectral_basis"])
     return s
 
 
@@ -429,6 +449,15 @@ class ShapeStore:
         """The entry key of a :class:`ShapeMetric` this store returned, else None."""
         return self._keys.get(shape)
 
+    def key_for(self, source, metric: str = "diffusion", *, resolution: int | None = DEFAULT_RESOLUTION,
+                metric_options: dict | None = None, rank_tau_scale: float | None = None) -> str:
+        """The entry key :meth:`shape` gives ``source`` with these options, computing nothing
+        (e.g. to keep arrays derived from that shape with :meth:`put_extra`)."""
+        if isinstance(source, ShapeMetric) and source in self._keys:
+            return self._keys[source]
+        _, content, options, _ = self._source(source, metric, resolution, metric_options, rank_tau_scale)
+        return self.entry_key(content, options)
+
     # ------------------------------------------------------------------ shapes
     def shape(self, source, metric: str = "diffusion", *, resolution: int | None = DEFAULT_RESOLUTION,
               metric_options: dict | None = None, rank_tau_scale: float | None = None) -> ShapeMetric:
@@ -449,8 +478,9 @@ class ShapeStore:
         Returns
         -------
         ShapeMetric
-            With its distances, diameter, signatures, normals (and ranking metric) in place;
-            read back from the store it gives bit-identical matches to a fresh one.
+            With its distances, diameter, signatures, normals (a spectral metric's eigenpairs,
+            and the ranking metric) in place; read back from the store it gives bit-identical
+            matches to a fresh one, dense maps included.
         """
         return self._keyed(source, metric, resolution, metric_options, rank_tau_scale)[1]
 

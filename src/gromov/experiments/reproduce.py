@@ -281,12 +281,15 @@ class _Shapes:
     """Working meshes per (class, pose), made once; perturbed shapes per entry.
 
     ``weld_join``: how welds glue (:data:`gromov.perturb.WELD_JOINS`, :func:`gromov.perturb.weld`).
+    ``store``: a :class:`gromov.store.ShapeStore` that keeps each shape's metrics and the rows
+    of the geodesic ground truth (:meth:`geodesic`, :meth:`save_rows`) between runs, or None.
     """
 
-    def __init__(self, collection, resolution, weld_join: str = "pinch"):
+    def __init__(self, collection, resolution, weld_join: str = "pinch", store=None):
         self.collection = collection
         self.resolution = resolution
         self.weld_join = weld_join
+        self.store = store
         self.working: dict[tuple[str, int], WorkingMesh] = {}
         self.mirror: dict[str, np.ndarray] = {}
         self.shapes: dict[str, _Shape] = {}
@@ -332,8 +335,14 @@ class _Shapes:
         """Geodesic solver on the clean working mesh, one per shape (not per pair), its rows
         cached (:class:`_CachedRows`)."""
         if (cls, pose) not in self.solvers:
-            self.solvers[cls, pose] = _CachedRows(metric_solver(self.work(cls, pose).mesh, "geodesic"))
+            mesh = self.work(cls, pose).mesh
+            self.solvers[cls, pose] = _stored_rows(self.store, mesh, metric_solver(mesh, "geodesic"))
         return self.solvers[cls, pose]
+
+    def save_rows(self) -> None:
+        """Keep the ground truth's new geodesic rows in the store (:func:`_save_rows`)."""
+        for rows in self.solvers.values():
+            _save_rows(self.store, rows)
 
     def diameter(self, cls: str, pose: int) -> float:
         """Geodesic diameter of the clean working mesh (largest of all pairwise distances).
@@ -356,6 +365,8 @@ class _CachedRows:
     def __init__(self, solver):
         self.solver = solver
         self.rows: dict[int, np.ndarray] = {}
+        self.key: str | None = None   # with a store: the key its rows are kept under
+        self.n_stored = 0             # rows read from (or written to) the store
 
     def pairwise(self):
         return self.solver.pairwise()
@@ -368,6 +379,51 @@ class _CachedRows:
         if missing.size:
             self.rows.update(zip(missing.tolist(), self.solver.from_sources(missing)))
         return np.stack([self.rows[v] for v in sources])
+
+
+#: Name of the geodesic ground truth's rows in a store (:meth:`gromov.store.ShapeStore.put_extra`).
+ROWS_EXTRA = "ground_truth_geodesic_rows"
+
+
+def _rows_checksum(sources: np.ndarray, rows: np.ndarray) -> str:
+    import hashlib
+
+    h = hashlib.sha256(np.ascontiguousarray(sources, dtype=np.int64).tobytes())
+    h.update(np.ascontiguousarray(rows, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def _stored_rows(store, mesh: Mesh, solver) -> _CachedRows:
+    """:class:`_CachedRows` of ``solver`` (the geodesic metric of ``mesh``), with the rows a
+    store kept for that mesh (under the key of its geodesic entry, :data:`ROWS_EXTRA`) in
+    place. Rows that do not match their checksum or the mesh are logged and computed again."""
+    cached = _CachedRows(solver)
+    if store is None:
+        return cached
+    cached.key = store.key_for(mesh, "geodesic", resolution=None, metric_options={})
+    kept = store.extra(cached.key, ROWS_EXTRA)
+    if kept is None:
+        return cached
+    sources, rows = kept.get("sources"), kept.get("rows")
+    if (sources is None or rows is None or rows.shape != (len(sources), solver.n_vertices)
+            or str(kept.get("checksum")) != _rows_checksum(sources, rows)):
+        logger.warning("store %s: the geodesic rows kept for a mesh of %d vertices are damaged; they "
+                       "are computed again", store.root, solver.n_vertices)
+        return cached
+    cached.rows.update(zip(sources.tolist(), rows))
+    cached.n_stored = len(cached.rows)
+    return cached
+
+
+def _save_rows(store, cached: _CachedRows) -> None:
+    """Keep ``cached``'s rows in the store where rows were added since they were read."""
+    if store is None or cached.key is None or len(cached.rows) == cached.n_stored:
+        return
+    sources = np.array(sorted(cached.rows), dtype=np.int64)
+    rows = np.stack([cached.rows[v] for v in sources.tolist()])
+    store.put_extra(cached.key, ROWS_EXTRA, {"sources": sources, "rows": rows,
+                                             "checksum": np.array(_rows_checksum(sources, rows))})
+    cached.n_stored = len(sources)
 
 
 def _geodesic_errors(w: WorkingMesh, solver, images, truth) -> np.ndarray:
@@ -510,8 +566,12 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
     curves = {}
     for metric in METRICS:
         t = time.perf_counter()
-        prepared = prepare([shapes.prepared.get((metric, s.label), s.mesh) for s in items], metric,
-                           n_samples=st.n_samples, seed=st.seed, resolution=None,
+        sources = [shapes.prepared.get((metric, s.label), s.mesh) for s in items]
+        if shapes.store is not None:   # each shape's metric read back, or computed and kept
+            sources = shapes.store.shapes(sources, metric, resolution=None,
+                                          metric_options=st.metric_options[metric],
+                                          rank_tau_scale=st.rank_tau_scale, progress=not quiet)
+        prepared = prepare(sources, metric, n_samples=st.n_samples, seed=st.seed, resolution=None,
                            metric_options=st.metric_options[metric], progress=not quiet,
                            rank_tau_scale=st.rank_tau_scale)   # in metrics_s, as per-shape work
         for s, sm in zip(items, prepared):
@@ -527,7 +587,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
         timings[f"{name}.{metric}.metrics_s"] = round(time.perf_counter() - t, 2)
         r = gh_matrix(prepared, metric, n_samples=st.n_samples, seed=st.seed, jobs=jobs,
                       progress=not quiet, keep=keep, known=known, rank_tau_scale=st.rank_tau_scale,
-                      rank_residual=st.rank_residual)
+                      rank_residual=st.rank_residual, store=shapes.store)
         for i in range(len(items)):
             for j in range(i + 1, len(items)):
                 if items[i].label in shapes.shared and items[j].label in shapes.shared:
@@ -605,7 +665,13 @@ def _correspondence_runs(name: str, entries, shapes: _Shapes, st: Settings, jobs
                  if (metric, items[i].label, items[j].label) not in matches]
         used = sorted({k for ij in pairs for k in ij})
         index = {k: n for n, k in enumerate(used)}
-        results = match_pairs([items[k].mesh for k in used], [(index[i], index[j]) for i, j in pairs],
+        sources = [items[k].mesh for k in used]
+        if shapes.store is not None and sources:   # as match_pairs would prepare them
+            sources = shapes.store.shapes(sources, metric, resolution=None,
+                                          metric_options=correspondence_options(
+                                              metric, st.correspondence_options[metric]),
+                                          progress=not quiet)
+        results = match_pairs(sources, [(index[i], index[j]) for i, j in pairs],
                               metric, n_samples=st.n_samples, seed=st.seed, resolution=None,
                               metric_options=st.correspondence_options[metric], jobs=jobs,
                               progress=not quiet, dense=metric in DENSE_METRICS)
@@ -752,7 +818,7 @@ def _topkids_dense(kids, names, results, ref_mesh, sym0) -> dict:
     return _dense_summary(per, samples)
 
 
-def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timings: dict) -> dict:
+def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timings: dict, store=None) -> dict:
     from scipy.stats import spearmanr
 
     from .correspondence import error_curve
@@ -767,8 +833,11 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
     handles = [(2 - m.euler_characteristic) / 2 for m in meshes]
     timings["topkids.load_s"] = round(time.perf_counter() - t, 2)
     w0 = works[0]
-    geo0 = _CachedRows(metric_solver(w0.mesh, "geodesic"))
-    diam0 = float(np.max(geo0.pairwise()))
+    geo0 = _stored_rows(store, w0.mesh, metric_solver(w0.mesh, "geodesic"))
+    if store is None:
+        diam0 = float(np.max(geo0.pairwise()))
+    else:   # the same symmetrised matrix, kept with kid00's geodesic entry
+        diam0 = float(np.max(store.shape(ShapeMetric(meshes[0], "geodesic", working=w0), "geodesic").distances))
     sym0 = kids.symmetry(ref)
     area0 = float(meshes[0].area)
     res = {"n_shapes": len(names), "reference": ref, "shapes": names,
@@ -778,6 +847,8 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
         t = time.perf_counter()
         shapes = [ShapeMetric(m, metric, working=w, metric_options=st.correspondence_options[metric])
                   for m, w in zip(meshes, works)]
+        if store is not None:   # each keyed by its mesh and working mesh
+            shapes = store.shapes(shapes, metric, progress=not quiet)
         results = match_pairs(shapes, [(i, 0) for i in range(1, len(shapes))], metric,
                               n_samples=st.n_samples, seed=st.seed, resolution=None, jobs=jobs,
                               progress=not quiet, dense=metric in DENSE_METRICS)
@@ -824,6 +895,7 @@ def _topkids(data: Path, st: Settings, jobs: int, out: Path, quiet: bool, timing
              f"(direct {res[metric]['correspondence_direct']:.4f}), GH/diam mean "
              f"{res[metric]['relative_distance_mean']:.4f}, Spearman vs handles "
              f"{res[metric]['spearman_distance_vs_handles']}", quiet)
+    _save_rows(store, geo0)
     fig = _figure((5.0, 4.0), 100)
     ax = fig.add_subplot(111)
     for metric, (thr, frac) in curves.items():
@@ -872,7 +944,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
               diffusion: dict | None = None, weld_join: str = "pinch", classes: dict | None = None,
               topkids: bool = True, rank_by: str = "trimmed",
               rank_tau_scale: float | None = RANK_TAU_SCALE, rank_residual: str = RANK_RESIDUAL,
-              pose_stretch: float = 0.0, local_scaling: int = LOCAL_SCALING_K) -> dict:
+              pose_stretch: float = 0.0, local_scaling: int = LOCAL_SCALING_K, store=None) -> dict:
     """Run the paper's experiments and write ``results.json``, figures and ``index.html``.
 
     Parameters
@@ -947,6 +1019,14 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         number of shapes less one): ``recognition.<experiment>.<metric>.eer_local``,
         ``local_scaling_k``, ``errors_at_eer_local``. A set-level normalisation, reported
         beside the EER, never instead of it. Recorded in ``params``.
+    store : str, os.PathLike or gromov.store.ShapeStore, optional
+        A shape store (:mod:`gromov.store`, outside ``out``): every shape's metrics -- the
+        clean, welded and holed shapes, in the recognition's metric options and in the
+        correspondence's, TOPKIDS' -- are read from it where it has them, else computed and
+        added, as are the recognition's pair results (:func:`gromov.experiments.gh_matrix`'s
+        ``store``) and the geodesic rows the correspondence error is measured with; a second
+        run with the same options computes no metric again. The results are the same as
+        without a store; what was read back and computed is in ``results["store"]``.
 
     Returns
     -------
@@ -998,6 +1078,15 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
                                              for m in METRICS})
     out = Path(out)
     _check_out(out)
+    if store is not None:
+        from ..store import ShapeStore, as_store
+
+        root = Path(store.root if isinstance(store, ShapeStore) else store).resolve()
+        if root.is_relative_to(out.resolve()):
+            raise ValueError(f"store {str(root)!r} is inside out {str(out)!r}, which is replaced as a "
+                             "whole when the run is complete: keep the store outside it")
+        store = as_store(store)
+        counts = (store.computed, store.reused, store.pairs_reused)
     final = out
     with atomic_folder(final) as out:   # everything below writes into a hidden sibling folder
         collection = _collection(dataset, data, pose_stretch)
@@ -1005,7 +1094,7 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
         if unknown:
             raise datasets.DatasetError(f"no class {', '.join(map(repr, unknown))} in {data}; classes: "
                                         f"{', '.join(collection.classes)}")
-        shapes = _Shapes(collection, st.resolution, weld_join)
+        shapes = _Shapes(collection, st.resolution, weld_join, store)
         timings: dict = {}
         _say(f"gromov reproduce: {dataset}{' (quick)' if quick else ''}, {jobs} job(s), output in {final}", quiet)
 
@@ -1041,11 +1130,12 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
             figures.update(rec.pop("figures"))
         figures.update(_correspondence_figures(cmatches, shapes, out))
         figures.update(_dense_pages(cmatches, shapes, out))
+        shapes.save_rows()
         timings["correspondence_s"] = round(time.perf_counter() - t, 2)
 
         topkids = None
         if data is not None and st.topkids and (data / "topkids").is_dir():
-            topkids = _topkids(data, st, jobs, out, quiet, timings)
+            topkids = _topkids(data, st, jobs, out, quiet, timings, store)
             figures.update(topkids.pop("figures"))
         timings["total_s"] = round(time.perf_counter() - t_start, 2)
 
@@ -1068,6 +1158,10 @@ def reproduce(data=None, out="gromov-reproduce", *, quick: bool = False, jobs: i
             "versions": _versions(),
             "environment": environment(),
             "figures": figures,
+            "store": None if store is None else {
+                "path": str(store.root), **{k: v - v0 for k, v, v0 in zip(
+                    ("shapes_computed", "shapes_read", "pairs_read"),
+                    (store.computed, store.reused, store.pairs_reused), counts)}},
         }
         for key in RESULT_KEYS:
             a, b, c = key.split(".")
