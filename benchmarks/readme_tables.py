@@ -140,6 +140,7 @@ def anchors_table() -> str:
     """gromov beside the tool a practitioner would otherwise use, one row per task."""
     f = load("foundation.json")["geodesic_all_pairs"]
     m, dense, fps = load("match.json"), load("dense.json"), load("cloud_sampling.json")
+    e2e = load("speed.json")["end_to_end"]
     ours, heat = f["gromov fmm (ours)"], f["potpourri3d heat"]
     big = max(fps["rows"], key=lambda row: row["points"])
     td, tt = dense["topkids"]["summary"], dense["tosca"]["summary"]
@@ -155,6 +156,9 @@ def anchors_table() -> str:
         f"{_num(_match_mean(m, 'diffusion', 'gw'), 4)} (POT, Gromov–Wasserstein) |",
         f"| time per match, cat0 → cat1, geodesic metrics prepared, one thread | {_secs(m['speed']['match_seconds'])} "
         f"| {m['speed']['pot_gw_seconds'] * 1000:.1f} ms (POT) |",
+        f"| `gromov match cat0 cat1` end to end, a new process: time; sample error ÷ diameter | "
+        f"{_secs(e2e['gromov_s'])}; {_num(e2e['gromov_error'], 4)} | {_secs(e2e['pipeline_s'])}; "
+        f"{_num(e2e['pipeline_error'], 4)} (potpourri3d heat geodesics + POT) |",
         f"| dense map, {len(dense['topkids']['pairs'])} TOPKIDS pairs (real topological noise): mean "
         f"error × 100 / √area | {td['ours_dense']['mean']:.2f} | {td['pyfm_dense']['mean']:.2f} "
         "(pyFM, functional maps + ZoomOut) |",
@@ -238,6 +242,27 @@ def match_speed(r: dict) -> str:
     ])
 
 
+def speed_table(r: dict) -> str:
+    """bench_speed.py: first run, start-up, one pair, end to end, welds."""
+    f, st, p, e = r["first_run"], r["startup"], r["one_pair"], r["end_to_end"]
+    rows = ["| what | gromov | anchor | ratio |", "|---|---:|---:|---:|",
+            f"| first `gromov match cat0 cat1` after install (empty numba cache) | {_secs(f['cold_s'])} | "
+            f"{_secs(f['warm_s'])} (the same, warm) | {f['ratio']:.2f} |",
+            f"| `import gromov`; `gromov --help` | {_secs(st['import_s'])}; {_secs(st['help_s'])} | "
+            f"{_secs(st['python_s'])} (Python alone) | |",
+            f"| one pair of a matrix, metrics computed, one thread | {_secs(p['ours'])} | "
+            f"{p['pot'] * 1000:.1f} ms (POT Gromov–Wasserstein) | {p['ratio']:.0f} |",
+            f"| `gromov match cat0 cat1` end to end | {_secs(e['gromov_s'])} | {_secs(e['pipeline_s'])} "
+            f"(potpourri3d + POT) | {e['time_ratio']:.2f} |",
+            f"| its sample error ÷ diameter | {_num(e['gromov_error'], 4)} | {_num(e['pipeline_error'], 4)} | "
+            f"{e['error_ratio']:.2f} |",
+            f"| the same with `--metric geodesic` | {_secs(e['gromov_geodesic_s'])} | | |"]
+    for name, w in r["weld"].items():
+        state = f"{w['seconds']:.1f} s, {w['peak_mb']:.0f} MB" if w["ok"] else "no weld sites"
+        rows.append(f"| `gromov perturb weld {name} --count 3` | {state} | | |")
+    return "\n".join(rows)
+
+
 DENSE_LABELS = (("ours_samples", "ours, at our samples"), ("ours_dense", "**ours, dense**"),
                 ("pyfm_samples", "pyFM, at our samples"), ("pyfm_dense", "pyFM, dense"))
 
@@ -290,7 +315,8 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("dense.json, dense-placed.json", dense_table(dense, placed, "topkids")),
             ("dense.json, dense-placed.json", dense_table(dense, placed, "tosca")),
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
-            ("point_clouds.json", point_clouds_table(load("point_clouds.json")))]
+            ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
+            ("speed.json", speed_table(load("speed.json")))]
 
 
 def main(argv=None) -> None:
@@ -307,7 +333,7 @@ def main(argv=None) -> None:
         print()
     if a.files:
         return
-    print("### anchors (foundation.json, match.json, dense.json, cloud_sampling.json)\n")
+    print("### anchors (foundation.json, match.json, speed.json, dense.json, cloud_sampling.json)\n")
     print(anchors_table() + "\n")
     for name, tab in benchmark_tables():
         print(f"### {name}\n")

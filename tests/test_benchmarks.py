@@ -226,15 +226,18 @@ def test_anchor_table_is_the_results_files():
     assert f"| {gmds:.4f} (GMDS) | {gw:.4f} (POT" in rows[1] and gmds < gw
     speed = _json("match.json")["speed"]
     assert f"| {speed['match_seconds']:.2f} s | {1000 * speed['pot_gw_seconds']:.1f} ms (POT) |" in rows[2]
+    e2e = _json("speed.json")["end_to_end"]
+    assert (f"| {e2e['gromov_s']:.2f} s; {e2e['gromov_error']:.4f} | {e2e['pipeline_s']:.2f} s; "
+            f"{e2e['pipeline_error']:.4f} (potpourri3d" in rows[3])
     dense = _json("dense.json")
-    for row, ds in ((rows[3], "topkids"), (rows[4], "tosca")):
+    for row, ds in ((rows[4], "topkids"), (rows[5], "tosca")):
         s = dense[ds]["summary"]
         assert f"| {s['ours_dense']['mean']:.2f} | {s['pyfm_dense']['mean']:.2f} " in row, row
-    assert len(dense["topkids"]["pairs"]) == 25 and "25 TOPKIDS pairs" in rows[3]
+    assert len(dense["topkids"]["pairs"]) == 25 and "25 TOPKIDS pairs" in rows[4]
     big = _json("cloud_sampling.json")["rows"][-1]
     assert big["points"] == 1_000_000
     assert (f"| {big['ours_s']:.2f} s | {big['fpsample_vanilla_s']:.2f} s / {big['fpsample_quickfps_s']:.2f} s"
-            in rows[5])
+            in rows[6])
 
 
 def test_benchmark_page_tables_are_the_results_files():
@@ -245,10 +248,10 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 8
+    assert len(tables) == 9
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
-    foundation, steps, match_acc, match_speed, _, _, sampling, clouds = (t for _, t in tables)
+    foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed = (t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
     d = _json("foundation.json")["diffusion"]
@@ -264,6 +267,10 @@ def test_benchmark_page_tables_are_the_results_files():
     pc = _json("point_clouds.json")
     assert f"| {pc['mean_best']['diffusion/cloud']:.4f} |" in clouds
     assert f"| {pc['rows']['victoria0-victoria1/geodesic/half cloud']['best']:.4f} |" in clouds
+    sp = _json("speed.json")
+    assert f"| {sp['one_pair']['ours']:.2f} s | {1000 * sp['one_pair']['pot']:.1f} ms" in speed
+    assert all(f"weld {name} --count 3` | {w['seconds']:.1f} s, {w['peak_mb']:.0f} MB |" in speed
+               for name, w in sp["weld"].items())
 
 
 def test_cloud_sampling_benchmark_compares_like_with_like():

@@ -477,6 +477,9 @@ def cmd_match(args) -> int:
         print(f"  distortion: {r.norm} {r.distortion:.6g}, rms {r.distortion_l2:.6g}, "
               f"max {r.distortion_linf:.6g}, rms of the best-fitting 80% of pairs "
               f"{r.distortion_trimmed:.6g}; {how}, {r.seconds:.2f} s")
+        lo, hi = r.gh_interval
+        print(f"  the two sample sets as finite metric spaces: their GH distance (max norm) is certified "
+              f"in [{lo:.6g}, {hi:.6g}]")
         if np.isfinite(r.orientation):
             kind = ("keeps the orientation" if r.orientation > 0.5 else
                     "reverses the orientation (a mirror image)")

@@ -465,6 +465,7 @@ class MatchResult:
                 "norm": self.norm, "metric": self.metric, "solver": self.solver,
                 "n_samples": self.n_samples, "n_iter": self.n_iter, "converged": self.converged,
                 "orientation": self.orientation if np.isfinite(self.orientation) else None,
+                "gh_interval": [v if np.isfinite(v) else None for v in self.gh_interval],
                 "seconds": self.seconds}
 
     @property
