@@ -40,32 +40,27 @@ ROUNDING = 1e-12
 
 
 @njit(cache=True, nogil=True)
+def _directed(a, b):  # pragma: no cover - compiled
+    """:math:`\\max_{x \\in a} \\min_{y \\in b} |x - y|` of sorted 1-D arrays, by one merge:
+    each value's nearest in ``b`` is its predecessor or successor there."""
+    h = 0.0
+    q = 0
+    for p in range(a.shape[0]):
+        while q + 1 < b.shape[0] and b[q + 1] <= a[p]:
+            q += 1
+        d = abs(a[p] - b[q])
+        if q + 1 < b.shape[0]:
+            d = min(d, abs(b[q + 1] - a[p]))
+        h = max(h, d)
+    return h
+
+
+@njit(cache=True, nogil=True)
 def _hausdorff_rows(A, B, out):  # pragma: no cover - compiled
-    """``out[i, j]`` = Hausdorff distance between the sorted rows ``A[i]`` and ``B[j]``, by
-    one merge per pair: each value's nearest in the other row is its predecessor or successor."""
-    k, l = A.shape[1], B.shape[1]
+    """``out[i, j]``: the Hausdorff distance between the sorted rows ``A[i]`` and ``B[j]``."""
     for i in range(A.shape[0]):
-        a = A[i]
         for j in range(B.shape[0]):
-            b = B[j]
-            h = 0.0
-            q = 0
-            for p in range(k):   # A -> B
-                while q + 1 < l and b[q + 1] <= a[p]:
-                    q += 1
-                d = abs(a[p] - b[q])
-                if q + 1 < l:
-                    d = min(d, abs(b[q + 1] - a[p]))
-                h = max(h, d)
-            q = 0
-            for p in range(l):   # B -> A
-                while q + 1 < k and a[q + 1] <= b[p]:
-                    q += 1
-                d = abs(b[p] - a[q])
-                if q + 1 < k:
-                    d = min(d, abs(a[q + 1] - b[p]))
-                h = max(h, d)
-            out[i, j] = h
+            out[i, j] = max(_directed(A[i], B[j]), _directed(B[j], A[i]))
 
 
 def local_hausdorff(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
