@@ -257,23 +257,20 @@ def test_kill_leaves_old_or_new(tmp_path, mesh_and_old):
     mesh, old = mesh_and_old
     out = tmp_path / "out.npz"
     out.write_bytes(old)
-    subprocess.run(_distances(mesh, out), check=True)   # compiles what a first run compiles
     t = time.perf_counter()
-    subprocess.run(_distances(mesh, out), check=True)   # its normal duration; a 28 MB archive
+    subprocess.run(_distances(mesh, out), check=True)   # its duration; a 28 MB archive
     duration = time.perf_counter() - t
     seen = {_complete(out, old)}
-    rng = np.random.default_rng(7)
-    # three moments near the end of the run, while the archive is written
-    moments = np.concatenate([rng.uniform(0, duration, 2), rng.uniform(0.75, 1.0, 3) * duration])
-    for moment in moments:
+    # a moment early in the run, one near its end, and (None) as soon as the archive's
+    # temporary file appears: while it is written
+    for moment in [*np.random.default_rng(7).uniform([0, 0.75], [1, 1]) * duration, None]:
         out.write_bytes(old)
-        proc = subprocess.Popen(_distances(mesh, out), stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
-        try:
-            proc.wait(timeout=moment)
-        except subprocess.TimeoutExpired:
-            proc.send_signal(signal.SIGKILL)
-            proc.wait()
+        stale = set(_hidden(tmp_path))
+
+        def stop(s, moment=moment, stale=stale):
+            return s >= moment if moment is not None else bool(set(_hidden(tmp_path)) - stale)
+
+        _run_until(_distances(mesh, out), stop, poll=0.001)
         seen.add(_complete(out, old))
         # nothing but the target and, after SIGKILL, possibly one hidden temporary file: the
         # one a killed run left is deleted by the next run's write

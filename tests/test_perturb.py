@@ -220,8 +220,10 @@ def test_weld_on_tosca_cat(cat_working):
 def test_weld_without_contacts_says_how_many_were_found(cat_working):
     with pytest.raises(ValueError, match="found only 0 separated weld site"):
         weld(icosphere(3), 1)     # convex: nothing is close in space and far on the surface
+    v = cat_working.mesh.vertices
+    radius = 0.03 * np.linalg.norm(v.max(0) - v.min(0))   # given: searched once, not grown
     with pytest.raises(ValueError, match=r"found only \d+ separated weld site\(s\) for count=50"):
-        weld(cat_working.mesh, 50)
+        weld(cat_working.mesh, 50, radius=radius)
 
 
 # ---------------------------------------------------------------------------- errors
