@@ -2,6 +2,8 @@ PYTHON ?= python3.11
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+# test files run in this many processes, a file per process (0: one process)
+TEST_JOBS ?= 2
 
 .PHONY: demo test docs bench clean
 
@@ -18,7 +20,7 @@ demo: $(STAMP)
 	$(BIN)/gromov reproduce --out gromov-reproduce
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile $(PYTEST_ARGS)
 
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
