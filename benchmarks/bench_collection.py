@@ -26,24 +26,25 @@ fresh folders under ``--store``.
    read from S1; a full match is replaced by the value (1) found for the pair (the same match,
    same options: ``knn_pairs``'s ``run`` and, for ``nearest``, its ``_match``), so no pair is
    matched again.
-6. kill: a fresh store S2; ``gromov pairwise`` killed (SIGKILL to its process group) once 30%
-   of the pairs are recorded in S2's catalogue (read-only polling), started again and killed at
-   70%, then run to the end: the total time, the pairs read back by the last run, and its
-   matrices compared with (1)'s bit for bit.
-7. dask: on ``--dask-classes`` (default centaur and horse, 14 shapes), what
+6. dask: on ``--dask-classes`` (default centaur and horse, 14 shapes), what
    ``gromov pairwise --dask 2`` runs -- a ``LocalCluster`` of 2 one-thread workers
    (:func:`gromov._dask.client_for`) and :func:`gromov.experiments.gh_matrix` with ``client`` --
    against ``gh_matrix(jobs=2)``, both without a store, in this process: pairs per second of the
    matching alone and of the whole run (cluster start, metrics and pairs), and whether the
    matrices are identical.
 
+7. kill: a fresh store S2; ``gromov pairwise`` killed (SIGKILL to its process group) once 30%
+   of the pairs are recorded in S2's catalogue (read-only polling), started again and killed at
+   70%, then run to the end: the total time, the pairs read back by the last run, and its
+   matrices compared with (1)'s bit for bit.
 Resources, for all 80 shapes: ``gh_matrix`` holds every prepared shape in memory (about 165 MB
 each at 3,000 vertices), about 13 GB in the ``gromov pairwise`` process of (1), (2), (3) and
-(6); step 5 holds the 80 shapes read back from S1 in this process (about 80 MB each, 6.5 GB). A
+(7); step 5 holds the 80 shapes read back from S1 in this process (about 80 MB each, 6.5 GB). A
 store takes about 80 MB of disk per shape (726 MB for the 9 shapes of wolf and centaur), 6.5 GB
 for all 80; S1 is removed before S2 is made when ``--store`` is not given. On 2 cores a pair
 takes about 0.9 s of wall time with 2 workers, so (1), (3) and (6) take about an hour each
-(3,160 pairs), the whole run about 3 hours (2 with ``--skip rematch``);
+(3,160 pairs), the whole run about 3 hours (2 with ``--skip rematch``); the results file is
+written after every part (``"complete": false`` until the last);
 ``--classes wolf,centaur --dask-classes wolf,centaur`` (9 shapes) checks the script in about 5
 minutes. Timings on a shared machine are noisy; the results file records the CPU.
 """
@@ -272,6 +273,10 @@ def main(argv=None) -> None:
                  "shapes": n, "pairs": P, "classes": classes,
                  "jobs": args.jobs, "skipped": sorted(skip)}
     print(f"{n} TOSCA shapes, {P} pairs, --jobs {args.jobs}; stores in {root}")
+
+    def save(complete: bool = False) -> None:   # after every part: a long run stopped keeps its parts
+        write_results(args.json, {**res, "complete": complete})
+
     try:
         # 1. from scratch
         wall, out, _, _ = run_cli(pairwise_cmd(files, s1, root / "scratch.npz", args.jobs), log, store=s1)
@@ -297,6 +302,7 @@ def main(argv=None) -> None:
             print(f"3 rematch   {wall:8.1f} s  ({wall / res['scratch']['seconds']:.1%} of 1): "
                   f"{res['rematch']['shapes_read']}/{n} shapes read back, "
                   f"{P - res['rematch']['pairs_read']} pairs matched (--seed 1)")
+        save()
         # 4. recognition, as gromov pairwise reports it
         res["recognition"] = {k: out[k] for k in ("nn_accuracy", "eer", "eer_gh", "eer_local", "local_scaling_k")}
         rec = res["recognition"]
@@ -305,6 +311,7 @@ def main(argv=None) -> None:
                   f"(GH {rec['eer_gh']:.2%}, locally scaled k={rec['local_scaling_k']} {rec['eer_local']:.2%})")
         else:
             print(f"4 recognition: nearest-neighbour accuracy {rec['nn_accuracy']:.1%}, no EER")
+        save()
         # 5. retrieval
         if "retrieval" not in skip:
             st = ShapeStore(s1)
@@ -322,9 +329,21 @@ def main(argv=None) -> None:
             for name, row in rows.items():
                 print(f"    {name:<18} recall {row['recall']:.3f}, {row['exact_queries']}/{row['queries']} as brute "
                       f"force, {row['full_matches']}/{row['pairs']} full matches ({row['fewer']:.1f}x fewer)")
+        save()
         if not keep:
             shutil.rmtree(s1)
-        # 6. killed at 30% and 70%, resumed
+        # 6. Dask
+        if "dask" not in skip:
+            dfiles = [str(f) for f in files_of(classes_of(args.dask_classes))]
+            d = res["dask"] = dask_rows(dfiles, args.jobs)
+            print(f"6 dask ({d['shapes']} shapes, {d['pairs']} pairs): --jobs {args.jobs} {d['jobs']['seconds']:.1f} s "
+                  f"(pairs {d['jobs']['match']:.1f} s), LocalCluster of {args.jobs} {d['dask']['seconds']:.1f} s "
+                  f"(start {d['dask']['cluster_start']:.1f} s, pairs {d['dask']['match']:.1f} s); throughput "
+                  f"dask / jobs: pairs {d['throughput_ratio_match']:.2f}, metrics and pairs "
+                  f"{d['throughput_ratio_without_start']:.2f}, whole run {d['throughput_ratio_total']:.2f}; "
+                  f"identical matrices: {d['identical']}")
+            save()
+        # 7. killed at 30% and 70%, resumed
         if "kill" not in skip:
             runs = []
             for frac in KILL_AT:
@@ -340,28 +359,18 @@ def main(argv=None) -> None:
             total = sum(r["seconds"] for r in runs)
             res["kill"] = {"runs": runs, "seconds": total, "store_problems": problems,
                            "identical": same(ref, matrices(root / "resume.npz"))}
-            print(f"6 killed    {total:8.1f} s  ({total / res['scratch']['seconds']:.2f}x 1) in "
+            print(f"7 killed    {total:8.1f} s  ({total / res['scratch']['seconds']:.2f}x 1) in "
                   + " + ".join(f"{r['seconds']:.1f}" for r in runs)
                   + " s; stopped at " + ", ".join(f"{r['pairs_recorded']}" + ("" if r["killed"] else " (finished)")
                                                   for r in runs[:-1])
                   + f" pairs; the last run "
                   f"read {runs[-1]['pairs_read']}; store problems: {len(problems)}; "
                   f"identical matrices: {res['kill']['identical']}")
-        # 7. Dask
-        if "dask" not in skip:
-            dfiles = [str(f) for f in files_of(classes_of(args.dask_classes))]
-            d = res["dask"] = dask_rows(dfiles, args.jobs)
-            print(f"7 dask ({d['shapes']} shapes, {d['pairs']} pairs): --jobs {args.jobs} {d['jobs']['seconds']:.1f} s "
-                  f"(pairs {d['jobs']['match']:.1f} s), LocalCluster of {args.jobs} {d['dask']['seconds']:.1f} s "
-                  f"(start {d['dask']['cluster_start']:.1f} s, pairs {d['dask']['match']:.1f} s); throughput "
-                  f"dask / jobs: pairs {d['throughput_ratio_match']:.2f}, metrics and pairs "
-                  f"{d['throughput_ratio_without_start']:.2f}, whole run {d['throughput_ratio_total']:.2f}; "
-                  f"identical matrices: {d['identical']}")
     finally:
         if not keep:
             shutil.rmtree(root, ignore_errors=True)
     print_table(res)
-    write_results(args.json, res)
+    save(complete=True)
 
 
 def print_table(res: dict) -> None:
@@ -375,7 +384,7 @@ def print_table(res: dict) -> None:
         rows.append(("3 pairs again (--seed 1)", r["seconds"], f"{r['shapes_read']} shapes read"))
     if "kill" in res:
         r = res["kill"]
-        rows.append(("6 killed 30%, 70%, resumed", r["seconds"], f"identical {r['identical']}"))
+        rows.append(("7 killed 30%, 70%, resumed", r["seconds"], f"identical {r['identical']}"))
     print(f"\n{'step':<30}{'seconds':>10}{'x step 1':>10}  notes")
     for name, s, note in rows:
         print(f"{name:<30}{s:>10.1f}{s / base:>10.2f}  {note}")
