@@ -185,13 +185,16 @@ def test_knn_pairs_equals_brute_force_and_skips_pairs(prepared):
     assert gh.neighbors.tolist() == _brute(g.relative, 1)
 
 
-def test_gh_matrix_k_matches_only_the_pairs_it_needs(prepared):
+def test_gh_matrix_k_matches_only_the_pairs_it_needs(prepared, capsys):
     """``gh_matrix(k=1)``: every shape's nearest as in the full matrix, the matched entries
-    equal to the full run's, the skipped ones NaN and counted."""
+    equal to the full run's, the skipped ones NaN and counted, on the progress bar too."""
     metric, shapes = prepared
     items = list(shapes.values())
     full = gh_matrix(items, metric, n_samples=N, resolution=None, jobs=1)
-    part = gh_matrix(items, metric, n_samples=N, resolution=None, jobs=1, k=1)
+    capsys.readouterr()
+    part = gh_matrix(items, metric, n_samples=N, resolution=None, jobs=1, k=1, progress=True)
+    bar = capsys.readouterr().err
+    assert "GH pairs (k = 1)" in bar and f"skipped={part.skipped}" in bar
     assert full.skipped == 0
     off = ~np.eye(len(items), dtype=bool)
     matched = ~np.isnan(part.trimmed) & off

@@ -468,7 +468,7 @@ def cmd_match(args) -> int:
         print(_dumps({**r.to_dict(), "metric_options": options, **({} if stored is None else {"store": stored})}))
     else:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
-              f"({r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
+              f"({r.norm} norm, {r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
               f"{r.n_samples} samples per shape")
         if all(s.has_faces for s in shapes):
             how = f"{r.n_iter} iterations, {'converged' if r.converged else 'not converged'}"
@@ -478,8 +478,9 @@ def cmd_match(args) -> int:
               f"max {r.distortion_linf:.6g}, rms of the best-fitting 80% of pairs "
               f"{r.distortion_trimmed:.6g}; {how}, {r.seconds:.2f} s")
         lo, hi = r.gh_interval
-        print(f"  the two sample sets as finite metric spaces: their GH distance (max norm) is certified "
-              f"in [{lo:.6g}, {hi:.6g}]")
+        print(f"  the two sample sets as finite metric spaces: their GH distance with the max norm is "
+              f"certified in [{lo:.6g}, {hi:.6g}]" + ("" if r.norm == "linf" else f" (the {r.norm} value above averages "
+                                                       "the distortion: it can lie below)"))
         if np.isfinite(r.orientation):
             kind = ("keeps the orientation" if r.orientation > 0.5 else
                     "reverses the orientation (a mirror image)")

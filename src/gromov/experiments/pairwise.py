@@ -443,16 +443,23 @@ def _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress, d
     """``({(i, j): worker result}, skipped)``: :func:`gromov.retrieval.knn_pairs` over the
     prepared shapes, the pairs ``done`` already given as known, the others run by :func:`_run`
     ``2 * jobs`` at a time."""
+    from tqdm import tqdm
+
     from ..retrieval import knn_pairs
 
     known = {(int(i), int(j)): (dist[i, j], rel[i, j], trim[i, j], None) for i, j in zip(*np.nonzero(np.triu(done, 1)))}
+    # the bar counts the pairs matched against all that could be; the skipped ones close it
+    with tqdm(total=len(pairs), desc=f"{desc} (k = {k})", disable=not progress, leave=False) as bar:
+        def run(batch):
+            out = _run(prepared, batch, keep, jobs, False, desc, options, matrix=True)
+            bar.update(len(batch))
+            return out
 
-    def run(batch):
-        return _run(prepared, batch, keep, jobs, False, desc, options, matrix=True)
-
-    got = knn_pairs(prepared, k, run, n_samples=options["n_samples"], seed=options["seed"],
-                    rank_tau_scale=options["rank_tau_scale"], rank_residual=options["rank_residual"],
-                    norm=match_options.get("norm", "l2"), known=known, force=keep, batch=2 * jobs)
+        got = knn_pairs(prepared, k, run, n_samples=options["n_samples"], seed=options["seed"],
+                        rank_tau_scale=options["rank_tau_scale"], rank_residual=options["rank_residual"],
+                        norm=match_options.get("norm", "l2"), known=known, force=keep, batch=2 * jobs)
+        bar.set_postfix(skipped=int(got.skipped))
+        bar.update(len(pairs) - bar.n)
     return got.results, int(got.skipped)
 
 
