@@ -104,3 +104,23 @@ def argsort_stable(values, rtol: float = TIE_RTOL) -> np.ndarray:
         new = np.diff(s) > _tie_tolerance(w, rtol)[0]
     group = np.concatenate([[0], np.cumsum(new)])
     return order[np.lexsort((order, group))]
+
+
+_BLAS = None
+
+
+def one_blas_thread():
+    """A context in which BLAS runs on one thread (threadpoolctl).
+
+    The search and GMDS call BLAS on small blocks (rank-32 updates of a 100 x n matrix), where
+    handing each call to a second thread costs more than it gains, and much more when the
+    other core is busy; on one thread the products also sum in one order, whatever the
+    machine's BLAS threads.
+    """
+    global _BLAS
+    if _BLAS is None:
+        import scipy.linalg  # noqa: F401  (its BLAS loaded before the libraries are listed)
+        from threadpoolctl import ThreadpoolController
+
+        _BLAS = ThreadpoolController()
+    return _BLAS.limit(limits=1, user_api="blas")

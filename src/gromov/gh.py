@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numba import njit
 
-from ._arrays import readonly
+from ._arrays import one_blas_thread, readonly
 from ._project import _project_among
 from .errors import GromovWarning, MetricError
 from .gmds import (EmbeddedDistance, SurfaceDistance, SurfacePoints, SymmetricGMDS, log_ratio_residuals,
@@ -688,10 +688,12 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
                                              tol=search.tol, radius=radius)
     prefer = _prefers_direct(sx, sy, orientation, solver, init, discrete)
     # the initial search, then GMDS, mirror images replaced by direct maps where nearly as good
-    starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
-    fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
-    if prefer and not fit.orientation > 0.5:
-        fit = _prefer_direct(sx, sy, P, Q, gm, starts, fit, n_samples, seed)
+    # (BLAS on one thread: small products, and one summation order whatever the machine's threads)
+    with one_blas_thread():
+        starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
+        fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
+        if prefer and not fit.orientation > 0.5:
+            fit = _prefer_direct(sx, sy, P, Q, gm, starts, fit, n_samples, seed)
     # the distortion of the final correspondence, and its images on the input meshes
     dx, dy = discrete_blocks(sx.distances, sy.distances, P, Q, fit.img_p, fit.img_q) if discrete else \
         gm.blocks(fit.img_p, fit.img_q)
