@@ -53,9 +53,17 @@ def face_neighbours(faces: np.ndarray) -> np.ndarray:
     return nb
 
 
+@njit(cache=True, inline="always")
+def _sq(D, a, b, square):
+    """``D[a, b]**2`` when ``square`` (D holds distances), else ``D[a, b]`` (squared already)."""
+    x = D[a, b]
+    return x * x if square else x
+
+
 @njit(cache=True)
-def _build_a(D2, F, t, vt, vu, fixed, A):
-    """Rows of A: a_j such that d^2(point in face t with bary u, j) = u . a_j."""
+def _build_a(D, square, F, t, vt, vu, fixed, A):
+    """Rows of A: a_j such that d^2(point in face t with bary u, j) = u . a_j (``D``: vertex
+    distances, squared here when ``square``, or squared distances)."""
     r0, r1, r2 = F[t, 0], F[t, 1], F[t, 2]
     nv = vt.shape[0]
     for j in range(nv):
@@ -64,13 +72,13 @@ def _build_a(D2, F, t, vt, vu, fixed, A):
             rr = F[t, r]
             acc = 0.0
             for c in range(3):
-                acc += D2[rr, F[tj, c]] * vu[j, c]
+                acc += _sq(D, rr, F[tj, c], square) * vu[j, c]
             A[j, r] = acc
     for k in range(fixed.shape[0]):
         v = fixed[k]
-        A[nv + k, 0] = D2[r0, v]
-        A[nv + k, 1] = D2[r1, v]
-        A[nv + k, 2] = D2[r2, v]
+        A[nv + k, 0] = _sq(D, r0, v, square)
+        A[nv + k, 1] = _sq(D, r1, v, square)
+        A[nv + k, 2] = _sq(D, r2, v, square)
 
 
 @njit(cache=True)
@@ -112,12 +120,12 @@ def _grad_hess(u0, u1, u2, A, delta, w, skip, eps):
 
 
 @njit(cache=True)
-def _move_point(i, vt, vu, fixed, delta, w, D2, F, FN, A, n_newton, eps):
+def _move_point(i, vt, vu, fixed, delta, w, D, F, FN, A, n_newton, eps):
     """Damped Newton steps of point i; returns the decrease of f_i (>= 0)."""
     skip = i
     t = vt[i]
     u0, u1, u2 = vu[i, 0], vu[i, 1], vu[i, 2]
-    _build_a(D2, F, t, vt, vu, fixed, A)
+    _build_a(D, True, F, t, vt, vu, fixed, A)
     f0 = _objective(u0, u1, u2, A, delta, w, skip)
     f = f0
     for _ in range(n_newton):
@@ -187,7 +195,7 @@ def _move_point(i, vt, vu, fixed, delta, w, D2, F, FN, A, n_newton, eps):
                         t = nb
                         u0, u1, u2 = n0, n1, n2
                         vt[i] = t
-                        _build_a(D2, F, t, vt, vu, fixed, A)
+                        _build_a(D, True, F, t, vt, vu, fixed, A)
                         f = _objective(u0, u1, u2, A, delta, w, skip)
                 break
             step *= 0.5
@@ -203,7 +211,7 @@ def _move_point(i, vt, vu, fixed, delta, w, D2, F, FN, A, n_newton, eps):
 
 
 @njit(cache=True)
-def sweep(vt, vu, fixed, delta, w, D2, F, FN, n_newton, eps):
+def sweep(vt, vu, fixed, delta, w, D, F, FN, n_newton, eps):
     """One Gauss-Seidel pass over the moving points; returns the total decrease.
 
     Parameters
@@ -212,36 +220,42 @@ def sweep(vt, vu, fixed, delta, w, D2, F, FN, n_newton, eps):
     fixed : (l,) vertex ids of fixed points on the same surface
     delta : (k, k + l) target distances of each moving point to [moving, fixed] points
     w : (k, k + l) weights (0 drops a pair)
-    D2 : (n, n) squared vertex distances of the surface
+    D : (n, n) vertex distances of the surface (squared as they are read: no second (n, n)
+        matrix is kept)
     F, FN : faces and face neighbours of the surface
     """
     k = vt.shape[0]
     A = np.empty((k + fixed.shape[0], 3))
     total = 0.0
     for i in range(k):
-        total += _move_point(i, vt, vu, fixed, delta[i], w[i], D2, F, FN, A, n_newton, eps)
+        total += _move_point(i, vt, vu, fixed, delta[i], w[i], D, F, FN, A, n_newton, eps)
     return total
 
 
 @njit(cache=True)
-def pair_distances(vt, vu, fixed, D2, F):
+def pair_distances(vt, vu, fixed, D, F, square=True):
     """Interpolated distances ``(k, k + l)`` from the moving points to [moving, fixed] points.
 
-    Row i first forms ``u_i^T D2[F_{t_i}, :]`` (three contiguous rows of ``D2``, read in
-    order), then reads it at the others' corners: the same interpolant as :func:`_build_a`
-    with far fewer scattered reads of the large matrix.
+    ``D``: vertex distances, squared as they are read when ``square`` (else squared
+    distances). Row i first forms ``u_i^T D2[F_{t_i}, :]`` (three contiguous rows of ``D``,
+    read in order), then reads it at the others' corners: the same interpolant as
+    :func:`_build_a` with far fewer scattered reads of the large matrix.
     """
     k = vt.shape[0]
-    n = D2.shape[0]
+    n = D.shape[0]
     nf = fixed.shape[0]
     out = np.empty((k, k + nf))
     rowv = np.empty(n)
     for i in range(k):
         t = vt[i]
-        a0, a1, a2 = D2[F[t, 0]], D2[F[t, 1]], D2[F[t, 2]]
+        a0, a1, a2 = D[F[t, 0]], D[F[t, 1]], D[F[t, 2]]
         u0, u1, u2 = vu[i, 0], vu[i, 1], vu[i, 2]
-        for v in range(n):
-            rowv[v] = u0 * a0[v] + u1 * a1[v] + u2 * a2[v]
+        if square:
+            for v in range(n):
+                rowv[v] = u0 * (a0[v] * a0[v]) + u1 * (a1[v] * a1[v]) + u2 * (a2[v] * a2[v])
+        else:
+            for v in range(n):
+                rowv[v] = u0 * a0[v] + u1 * a1[v] + u2 * a2[v]
         for j in range(k):
             tj = vt[j]
             s2 = vu[j, 0] * rowv[F[tj, 0]] + vu[j, 1] * rowv[F[tj, 1]] + vu[j, 2] * rowv[F[tj, 2]]

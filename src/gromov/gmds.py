@@ -227,15 +227,14 @@ class SurfaceDistance:
         if float(d.min()) < 0.0:
             raise MetricError(f"distances must be non-negative, got {float(d.min())!r}")
         self.mesh = mesh
-        self.distances = d
-        self.sq = np.ascontiguousarray(d * d)
+        self.distances = np.ascontiguousarray(d)   # squared where the kernels read it
         self.max_distance = top
         self.faces = np.ascontiguousarray(mesh.faces)
         self.neighbours = face_neighbours(mesh.faces)
 
     def between(self, pts: SurfacePoints, fixed: np.ndarray) -> np.ndarray:
         """Interpolated distances ``(k, k + l)`` from points to [points, fixed vertices]."""
-        return pair_distances(pts.face, pts.bary, np.asarray(fixed, np.int64), self.sq, self.faces)
+        return pair_distances(pts.face, pts.bary, np.asarray(fixed, np.int64), self.distances, self.faces)
 
     def block(self, vertices: np.ndarray) -> np.ndarray:
         """Distances ``(k, k)`` between the given vertices."""
@@ -288,7 +287,7 @@ class EmbeddedDistance:
         sq = self._squared(used)
         local_faces = np.ascontiguousarray(local[: corners.size].reshape(corners.shape))
         return pair_distances(np.arange(len(corners), dtype=np.int64), pts.bary,
-                              np.ascontiguousarray(local[corners.size:]), sq, local_faces)
+                              np.ascontiguousarray(local[corners.size:]), sq, local_faces, False)
 
 
 class SymmetricGMDS:
@@ -403,11 +402,11 @@ class SymmetricGMDS:
         for n_iter in range(1, self.max_iter + 1):
             # Q' on Y: targets to [Q', Q] are d_X(P, P) and d_X(P, P'); ex is that of the current P'
             delta_y[:, M:] = ex[:, K:].T
-            sweep(pf, pb, self.Q, delta_y, wy, Y.sq, Y.faces, Y.neighbours, self.n_newton, eps)
+            sweep(pf, pb, self.Q, delta_y, wy, Y.distances, Y.faces, Y.neighbours, self.n_newton, eps)
             # P' on X: targets to [P', P] are d_Y(Q, Q) and d_Y(Q, Q')
             ey = Y.between(SurfacePoints(pf, pb), self.Q)  # (M, M + K)
             delta_x[:, K:] = ey[:, M:].T
-            sweep(qf, qb, self.P, delta_x, wx, X.sq, X.faces, X.neighbours, self.n_newton, eps)
+            sweep(qf, qb, self.P, delta_x, wx, X.distances, X.faces, X.neighbours, self.n_newton, eps)
             ex = X.between(SurfacePoints(qf, qb), self.P)  # (K, K + M)
             new = self._weighted(ex, ey, w)
             self.history.append(new)
