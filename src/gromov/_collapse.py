@@ -27,6 +27,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._arrays import readonly
+
 __all__ = ["replay_collapses"]
 
 
@@ -146,7 +148,7 @@ def _link_condition(a, b, F, vf, vcount, stamp, tick, shared, ns, dega, degb, nb
     for i in range(kb):
         degb[nbb[i]] = 0
     if ok and ns == 2:
-        c, d = -1, -1
+        c, d = np.int64(-1), np.int64(-1)   # int64, not literals: one compilation of _has_face
         for s in range(2):
             f = shared[s]
             for j in range(3):
@@ -168,7 +170,7 @@ def _try_collapse(a, b, V, F, vf, vcount, face_alive, stamp, tick, shared, width
     if vcount[a] + vcount[b] > width:
         return False
     # faces on edge (a, b) and their opposite vertices
-    ns = 0
+    ns = np.int64(0)   # int64, not a literal: one compilation of _link_condition
     for k in range(vcount[b]):
         f = vf[b, k]
         if F[f, 0] == a or F[f, 1] == a or F[f, 2] == a:
@@ -308,7 +310,8 @@ def replay_collapses(vertices: np.ndarray, faces: np.ndarray, collapses: np.ndar
         may be applied the other way round (keeping ``remove``) when that one is legal and
         the proposed one is not, so ``applied`` alone does not say which.
     """
-    v = np.ascontiguousarray(vertices, dtype=np.float64)
-    f = np.ascontiguousarray(faces, dtype=np.int64)
-    c = np.ascontiguousarray(collapses, dtype=np.int64).reshape(-1, 2)
+    # read-only views whatever the caller's arrays: one compilation of _replay
+    v = readonly(np.ascontiguousarray(vertices, dtype=np.float64))
+    f = readonly(np.ascontiguousarray(faces, dtype=np.int64))
+    c = readonly(np.ascontiguousarray(collapses, dtype=np.int64).reshape(-1, 2))
     return _replay(v, f, c, 64, float(min_cos), float(min_quality))

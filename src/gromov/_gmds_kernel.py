@@ -351,7 +351,9 @@ def _place(dx, DY, img, c, R, C, block, U):
                     row[u] += uk[u]
             if k >= c:
                 img[k] = _argmin(row)
-            R[k] = DY[img[k]]
+            rk, dyk = R[k], DY[img[k]]
+            for u in range(n):   # (an element loop: a slice assignment compiles a shape check)
+                rk[u] = dyk[u]
         for k in range(b, e):
             rk = R[k]
             for u in range(n):
@@ -568,7 +570,8 @@ def _place_and_descend(dx, DY, start, max_sweeps, R, C, U, block, cap, ratio):
     m = dx.shape[0]
     img = np.empty(m, np.int64)
     c = start.shape[0]
-    img[:c] = start
+    for i in range(c):   # (an element loop: a slice assignment compiles a shape check)
+        img[i] = start[i]
     _place(dx, DY, img, c, R, C, block, U)
     if max_sweeps > 0:
         _complete(dx, R, C, block)
@@ -633,8 +636,10 @@ def _coarse_chunk(dx, DY, candidates, max_sweeps, imgs, costs, first, step, U):
     start = np.empty(1, np.int64)
     for q in range(first, candidates.shape[0], step):
         start[0] = candidates[q]
-        img, f = _place_and_descend(dx, DY, start, max_sweeps, R, C, U, 16, 32, 2.0)
-        imgs[q] = img
+        # typed int64, not as literals: one compilation of the kernels below for all callers
+        img, f = _place_and_descend(dx, DY, start, max_sweeps, R, C, U, np.int64(16), np.int64(32), 2.0)
+        for i in range(m):
+            imgs[q, i] = img[i]
         costs[q] = f
 
 

@@ -393,7 +393,7 @@ def _gram_tiles(sq, G, bi):
 @njit(cache=True, parallel=True)
 def _gram_parallel(sq, G, nb):
     for bi in prange(nb):
-        _gram_tiles(sq, G, bi)
+        _gram_tiles(sq, G, np.int64(bi))   # (prange's index is unsigned: one compilation)
 
 
 def _eigsh_top(a, k, *, M=None, sigma):
