@@ -56,6 +56,23 @@ def test_one_seed_on_one_machine_is_bit_identical_whatever_the_threads():
                               gromov.match(*_pair(), "geodesic", n_samples=30, resolution=None, seed=4).x_samples)
 
 
+def test_the_search_runs_blas_on_one_thread_and_restores_it():
+    """The search and GMDS call BLAS on small blocks, on one thread (one summation order on any
+    machine); the caller's BLAS threads are back afterwards."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from gromov._arrays import one_blas_thread
+
+    def blas_threads():
+        return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert blas_threads() and all(n == 2 for n in blas_threads())
+        with one_blas_thread():
+            assert all(n == 1 for n in blas_threads())
+        assert all(n == 2 for n in blas_threads())
+
+
 def _close_to_committed(fresh: float, committed: float, rtol: float = GH_RTOL, decimals: int = 6) -> bool:
     """Whether a fresh value agrees with a committed one within ``rtol``, beside the rounding
     of the committed file (``decimals`` places)."""
