@@ -45,7 +45,7 @@ WORKER_WAIT_S = 60.0
 # ----------------------------------------------------------------------------- shapes on workers
 def _nbytes(obj) -> int:
     """Bytes of the arrays reachable from ``obj`` (each buffer counted once): what a prepared
-    shape holds (its distances, the squared distances GMDS keeps, eigenpairs, meshes...)."""
+    shape holds (its distances, eigenpairs, meshes...)."""
     seen: set[int] = set()
     total = 0
     stack = [obj]
@@ -78,8 +78,9 @@ def _sizeof_shape(s: ShapeMetric) -> int:
 
 @dask_serialize.register(ShapeMetric)
 def _dumps_shape(s: ShapeMetric):
-    """A shape as sent between workers (or spilled to disk): without the squared distances
-    GMDS adds (:attr:`ShapeMetric.surface`), which the receiver computes again if it needs them."""
+    """A shape as sent between workers (or spilled to disk): without GMDS's view of its surface
+    (:attr:`ShapeMetric.surface`: the face adjacency), which the receiver builds again if it
+    needs it."""
     light = copy.copy(s)
     light._surface = None
     return pickle_dumps(light)
