@@ -37,15 +37,15 @@ fresh folders under ``--store``.
    of the pairs are recorded in S2's catalogue (read-only polling), started again and killed at
    70%, then run to the end: the total time, the pairs read back by the last run, and its
    matrices compared with (1)'s bit for bit.
-Resources, for all 80 shapes: ``gh_matrix`` holds every prepared shape in memory (about 165 MB
-each at 3,000 vertices), about 13 GB in the ``gromov pairwise`` process of (1), (2), (3) and
-(7); step 5 holds the 80 shapes read back from S1 in this process (about 80 MB each, 6.5 GB). A
-store takes about 80 MB of disk per shape (726 MB for the 9 shapes of wolf and centaur), 6.5 GB
-for all 80; S1 is removed before S2 is made when ``--store`` is not given. On 2 cores a pair
-takes about 0.9 s of wall time with 2 workers, so (1), (3) and (6) take about an hour each
-(3,160 pairs), the whole run about 3 hours (2 with ``--skip rematch``); the results file is
-written after every part (``"complete": false`` until the last);
-``--classes wolf,centaur --dask-classes wolf,centaur`` (9 shapes) checks the script in about 5
+Resources, for all 80 shapes: ``gh_matrix`` holds every prepared shape in memory (about 95 MB
+each at 3,000 vertices), shared with its forked workers: the ``gromov pairwise`` process of
+(1), (2), (3) and (7) with its two workers peaked at 9.1 GB (the sum of their proportional set
+sizes, sampled every 5 s); step 5 holds the 80 shapes read back from S1 in this process (about
+80 MB each, 6.5 GB). A store takes about 93 MB of disk per shape, 7.4 GB for all 80; S1 is removed
+before S2 is made when ``--store`` is not given. On 2 cores all 3,160 pairs take about 24 minutes
+from scratch (metrics included), and so do (3) and (7); the whole run about an hour with
+``--skip rematch``. The results file is written after every part (``"complete": false`` until
+the last); ``--classes wolf,centaur --dask-classes wolf,centaur`` (9 shapes) checks the script in about 5
 minutes. Timings on a shared machine are noisy; the results file records the CPU.
 """
 

@@ -167,7 +167,72 @@ def anchors_table() -> str:
         f"| farthest point sampling, {big['points']:,} points → {big['samples']:,} | "
         f"{_secs(big['ours_s'])} | {_secs(big['fpsample_vanilla_s'])} / "
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
+        *collection_rows(load("collection.json")),
     ]
+    return "\n".join(rows)
+
+
+def _minutes(s: float) -> str:
+    return f"{s / 60:.1f} min" if s >= 120 else f"{s:.0f} s"
+
+
+def collection_rows(r: dict) -> list[str]:
+    """bench_collection.py, as rows of the anchors table: a collection, its Dask run, its retrieval."""
+    sc, again, kill, d = r["scratch"], r["again"], r["kill"], r["dask"]
+    ret, rec = r["retrieval"]["rows"], r["recognition"]
+
+    def same(x):
+        return "same matrices" if x["identical"] else "**other matrices**"
+
+    return [
+        f"| {r['shapes']} TOSCA shapes, all {r['pairs']:,} pairs, 2 cores: from scratch; killed at 30% and 70% "
+        f"and resumed ({same(kill)}); again on its store ({same(again)}); nearest-neighbour accuracy, EER | "
+        f"{_minutes(sc['seconds'])}; {_minutes(kill['seconds'])}; {_minutes(again['seconds'])}; "
+        f"{_pct(rec['nn_accuracy'])}, {_pct(rec['eer'])} | |",
+        f"| the pairs of {d['shapes']} shapes on a Dask cluster of 2 workers: throughput (pairs alone; whole run) "
+        f"| {d['throughput_ratio_match']:.2f}; {d['throughput_ratio_total']:.2f} | 1 (`--jobs 2`, processes) |",
+        f"| the {r['retrieval']['k']} nearest of each of {r['shapes']} shapes: full matches (recall) | "
+        f"{ret['knn_pairs bound']['full_matches']:,} exact ({ret['knn_pairs bound']['recall']:.3f}); "
+        f"{ret['knn_pairs profile']['full_matches']:,} default ({ret['knn_pairs profile']['recall']:.3f}) | "
+        f"{r['pairs']:,} (all pairs) |",
+    ]
+
+
+RETRIEVAL_LABELS = {"nearest profile": "one query at a time (`gromov search`), default pruning",
+                    "nearest bound": "one query at a time, exact pruning (`prune=\"bound\"`)",
+                    "knn_pairs profile": "every shape at once (`gh_matrix(k=)`), default pruning",
+                    "knn_pairs bound": "every shape at once, exact pruning"}
+
+
+def collection_table(r: dict) -> str:
+    """bench_collection.py: the runs, recognition, retrieval and Dask rows."""
+    base = r["scratch"]["seconds"]
+    sc, again, kill = r["scratch"], r["again"], r["kill"]
+    rows = ["| run | seconds | × from scratch | notes |", "|---|---:|---:|---|",
+            f"| all {r['pairs']:,} pairs from scratch (metrics and pairs) | {base:.0f} | 1.00 | "
+            f"{r['pairs'] / base:.2f} pairs/s; a store of {sc['store_mb']:,.0f} MB |",
+            f"| the same command again on its store | {again['seconds']:.0f} | {again['seconds'] / base:.2f} | "
+            f"{again['shapes_read']} shapes and {again['pairs_read']:,} pairs read back; same matrices: "
+            f"{'yes' if again['identical'] else 'no'} |",
+            f"| killed (SIGKILL) at 30% and 70% of the pairs, run to the end | {kill['seconds']:.0f} | "
+            f"{kill['seconds'] / base:.2f} | runs of " + " + ".join(f"{x['seconds']:.0f}" for x in kill["runs"])
+            + f" s; same matrices: {'yes' if kill['identical'] else 'no'}; store problems: "
+            f"{len(kill['store_problems'])} |"]
+    rec = r["recognition"]
+    rows += ["", f"Nearest-neighbour accuracy {_pct(rec['nn_accuracy'])}; EER {_pct(rec['eer'])} (by the GH "
+             f"estimate {_pct(rec['eer_gh'])}, after local scaling with k = {rec['local_scaling_k']} "
+             f"{_pct(rec['eer_local'])}).", "",
+             f"| the {r['retrieval']['k']} nearest | recall | queries as brute force | full matches | fewer |",
+             "|---|---:|---:|---:|---:|"]
+    for name, row in r["retrieval"]["rows"].items():
+        rows.append(f"| {RETRIEVAL_LABELS.get(name, name)} | {row['recall']:.3f} | {row['exact_queries']}/{row['queries']} | "
+                    f"{row['full_matches']:,}/{row['pairs']:,} | {row['fewer']:.1f}× |")
+    d = r["dask"]
+    rows += ["", f"Dask, {d['shapes']} shapes, {d['pairs']} pairs: `--jobs 2` {d['jobs']['seconds']:.1f} s (pairs {d['jobs']['match']:.1f} s), "
+             f"a LocalCluster of 2 workers {d['dask']['seconds']:.1f} s (start {d['dask']['cluster_start']:.1f} s, "
+             f"pairs {d['dask']['match']:.1f} s): throughput {d['throughput_ratio_match']:.2f}× for the pairs, "
+             f"{d['throughput_ratio_total']:.2f}× for the whole run; same matrices: "
+             f"{'yes' if d['identical'] else 'no'}."]
     return "\n".join(rows)
 
 
@@ -316,7 +381,8 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("dense.json, dense-placed.json", dense_table(dense, placed, "tosca")),
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
             ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
-            ("speed.json", speed_table(load("speed.json")))]
+            ("speed.json", speed_table(load("speed.json"))),
+            ("collection.json", collection_table(load("collection.json")))]
 
 
 def main(argv=None) -> None:

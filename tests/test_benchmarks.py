@@ -248,10 +248,10 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 9
+    assert len(tables) == 10
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
-    foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed = (t for _, t in tables)
+    foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed, collection = (t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
     d = _json("foundation.json")["diffusion"]
@@ -271,6 +271,12 @@ def test_benchmark_page_tables_are_the_results_files():
     assert f"| {sp['one_pair']['ours']:.2f} s | {1000 * sp['one_pair']['pot']:.1f} ms" in speed
     assert all(f"weld {name} --count 3` | {w['seconds']:.1f} s, {w['peak_mb']:.0f} MB |" in speed
                for name, w in sp["weld"].items())
+    co = _json("collection.json")
+    assert co["complete"] and co["shapes"] == 80 and co["pairs"] == 80 * 79 // 2
+    assert f"| {co['scratch']['seconds']:.0f} | 1.00 |" in collection
+    assert f"same matrices: {'yes' if co['kill']['identical'] else 'no'};" in collection
+    row = co["retrieval"]["rows"]["knn_pairs bound"]
+    assert f"| {row['full_matches']:,}/{row['pairs']:,} |" in collection
 
 
 def test_cloud_sampling_benchmark_compares_like_with_like():
