@@ -53,17 +53,10 @@ def face_neighbours(faces: np.ndarray) -> np.ndarray:
     return nb
 
 
-@njit(cache=True, inline="always")
-def _sq(D, a, b, square):
-    """``D[a, b]**2`` when ``square`` (D holds distances), else ``D[a, b]`` (squared already)."""
-    x = D[a, b]
-    return x * x if square else x
-
-
 @njit(cache=True)
-def _build_a(D, square, F, t, vt, vu, fixed, A):
+def _build_a(D, F, t, vt, vu, fixed, A):
     """Rows of A: a_j such that d^2(point in face t with bary u, j) = u . a_j (``D``: vertex
-    distances, squared here when ``square``, or squared distances)."""
+    distances, squared as they are read)."""
     r0, r1, r2 = F[t, 0], F[t, 1], F[t, 2]
     nv = vt.shape[0]
     for j in range(nv):
@@ -72,13 +65,15 @@ def _build_a(D, square, F, t, vt, vu, fixed, A):
             rr = F[t, r]
             acc = 0.0
             for c in range(3):
-                acc += _sq(D, rr, F[tj, c], square) * vu[j, c]
+                d = D[rr, F[tj, c]]
+                acc += (d * d) * vu[j, c]
             A[j, r] = acc
     for k in range(fixed.shape[0]):
         v = fixed[k]
-        A[nv + k, 0] = _sq(D, r0, v, square)
-        A[nv + k, 1] = _sq(D, r1, v, square)
-        A[nv + k, 2] = _sq(D, r2, v, square)
+        d0, d1, d2 = D[r0, v], D[r1, v], D[r2, v]
+        A[nv + k, 0] = d0 * d0
+        A[nv + k, 1] = d1 * d1
+        A[nv + k, 2] = d2 * d2
 
 
 @njit(cache=True)
@@ -125,7 +120,7 @@ def _move_point(i, vt, vu, fixed, delta, w, D, F, FN, A, n_newton, eps):
     skip = i
     t = vt[i]
     u0, u1, u2 = vu[i, 0], vu[i, 1], vu[i, 2]
-    _build_a(D, True, F, t, vt, vu, fixed, A)
+    _build_a(D, F, t, vt, vu, fixed, A)
     f0 = _objective(u0, u1, u2, A, delta, w, skip)
     f = f0
     for _ in range(n_newton):
@@ -195,7 +190,7 @@ def _move_point(i, vt, vu, fixed, delta, w, D, F, FN, A, n_newton, eps):
                         t = nb
                         u0, u1, u2 = n0, n1, n2
                         vt[i] = t
-                        _build_a(D, True, F, t, vt, vu, fixed, A)
+                        _build_a(D, F, t, vt, vu, fixed, A)
                         f = _objective(u0, u1, u2, A, delta, w, skip)
                 break
             step *= 0.5
