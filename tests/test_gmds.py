@@ -491,7 +491,7 @@ def test_interpolated_distances_are_bilinear_in_squared_distances():
     vu = rng.random((7, 3))
     vu /= vu.sum(1, keepdims=True)
     fixed = np.array([0, 5, 30], np.int64)
-    out = pair_distances(vt, vu, fixed, D, F)     # squared as read
+    out = pair_distances(vt, vu, fixed, D, F, True)     # squared as read
     # the same values from the squared matrix, bit for bit
     np.testing.assert_array_equal(pair_distances(vt, vu, fixed, D2, F, False), out)
     for i in range(7):
@@ -501,7 +501,7 @@ def test_interpolated_distances_are_bilinear_in_squared_distances():
         np.testing.assert_allclose(out[i, 7:], np.sqrt(vu[i] @ D2[np.ix_(F[vt[i]], fixed)]), rtol=1e-12)
     # exact at vertices
     at = np.eye(3)[rng.integers(0, 3, 7)]
-    out = pair_distances(vt, at, fixed, D, F)
+    out = pair_distances(vt, at, fixed, D, F, True)
     v = F[vt, np.argmax(at, 1)]
     np.testing.assert_allclose(out[:, 7:], D[np.ix_(v, fixed)], rtol=1e-12, atol=1e-12)
 

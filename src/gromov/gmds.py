@@ -234,7 +234,7 @@ class SurfaceDistance:
 
     def between(self, pts: SurfacePoints, fixed: np.ndarray) -> np.ndarray:
         """Interpolated distances ``(k, k + l)`` from points to [points, fixed vertices]."""
-        return pair_distances(pts.face, pts.bary, np.asarray(fixed, np.int64), self.distances, self.faces)
+        return pair_distances(pts.face, pts.bary, np.asarray(fixed, np.int64), self.distances, self.faces, True)
 
     def block(self, vertices: np.ndarray) -> np.ndarray:
         """Distances ``(k, k)`` between the given vertices."""
