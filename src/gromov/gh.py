@@ -53,6 +53,14 @@ ORIENTATION_TOL = 0.1
 #: side) has an agreement near 1/2 (held-out TOSCA, diffusion: 0.54-0.58; the right direct maps
 #: 0.69-0.93) -- but so do some noisy right maps (geodesic: down to 0.54), hence only a preference.
 DIRECT_MARGIN = 0.15
+#: A direct map is also weighed against the other clearly direct starts of the search whose
+#: distortion is at most this much (relative) above its own: a body's half turn about its long
+#: axis (left to right and front to back) keeps the orientation and nearly the distances
+#: (:mod:`gromov.curvature`) ...
+TURN_TOL = 0.1
+#: ... and replaced by the one whose images keep the smoothed mean curvature best, when that
+#: one's mismatch is lower by at least this fraction (docs/design/initial-search.md, "Half turns").
+TURN_MARGIN = 0.1
 #: ... and a map obtained by composing the mirrored one with a reflection of either shape
 #: (:meth:`ShapeMetric.symmetry`) when within this much; chosen on the held-out classes.
 FLIP_TOL = 0.25
@@ -140,6 +148,7 @@ class ShapeMetric:
         self._lb_basis = None   # Laplace-Beltrami eigenpairs of the working mesh (gromov.dense)
         self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
+        self._curvature: np.ndarray | None = None
         self._symmetry: dict = {}
         self._ranking: dict = {}
         self._correspondence: ShapeMetric | None = None
@@ -213,6 +222,19 @@ class ShapeMetric:
             self._normals = (outward_normals(self.mesh) if self.has_faces else
                              (np.full((self.mesh.n_vertices, 3), np.nan), False))
         return self._normals
+
+    @property
+    def curvature(self) -> np.ndarray:
+        """Smoothed, scale-free signed mean curvature at the working vertices
+        (:func:`gromov.curvature.mean_curvature`; computed once; zeros for a point cloud)."""
+        if self._curvature is None:
+            if self.has_faces:
+                from .curvature import mean_curvature
+
+                self._curvature = mean_curvature(self.mesh, self.normals[0])
+            else:
+                self._curvature = np.zeros(self.mesh.n_vertices)
+        return self._curvature
 
     def symmetry(self, n_samples: int = 100, seed: int = 0) -> np.ndarray | None:
         """An intrinsic reflection of the shape: a map of its working vertices to themselves that
@@ -692,8 +714,12 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
     with one_blas_thread():
         starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
         fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
-        if prefer and not fit.orientation > 0.5:
-            fit = _prefer_direct(sx, sy, P, Q, gm, starts, fit, n_samples, seed)
+        if prefer:
+            candidates = _direct_candidates(sx, sy, P, Q, starts, more=not fit.orientation > 0.5)
+            if not fit.orientation > 0.5:
+                fit = _prefer_direct(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
+            if fit.orientation > 0.5:
+                fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit)
     # the distortion of the final correspondence, and its images on the input meshes
     dx, dy = discrete_blocks(sx.distances, sy.distances, P, Q, fit.img_p, fit.img_q) if discrete else \
         gm.blocks(fit.img_p, fit.img_q)
@@ -841,7 +867,7 @@ def _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete) -> _Fit:
                 pair_orientation(sx, sy, P, Q, img_p, img_q))
 
 
-def _prefer_direct(sx, sy, P, Q, gm, starts, fit: _Fit, n_samples: int, seed: int) -> _Fit:
+def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed: int) -> _Fit:
     """``orientation="prefer"`` for a mirrored (or scrambled) ``fit``: GMDS from the best
     orientation-preserving start too, among the extended starts and more preserving ones
     (within ``ORIENTATION_TOL`` of its distortion), then from its compositions with a
@@ -850,9 +876,8 @@ def _prefer_direct(sx, sy, P, Q, gm, starts, fit: _Fit, n_samples: int, seed: in
     the shapes (agreement near 1/2) only if no clearly direct one turns up. ``fit`` if none."""
     from ._arrays import argmin_stable
 
-    pairs = starts.plain(all_starts=True) + starts.preserving(-(-starts.fwd.per_stage // 2))
-    at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
-    keep = pairs_orientation(sx, sy, P, Q, at) > 0.5
+    at, agreement = candidates
+    keep = agreement > 0.5
     d_first = gm.distortion(fit.img_p, fit.img_q, 2.0)
 
     def attempt(start, tol_k):
@@ -889,6 +914,57 @@ def _prefer_direct(sx, sy, P, Q, gm, starts, fit: _Fit, n_samples: int, seed: in
             if partial is None:
                 partial = alt
     return found or partial or fit
+
+
+def _direct_candidates(sx, sy, P, Q, starts, more: bool):
+    """``(starts as surface points, their orientation agreements)`` that ``orientation="prefer"``
+    weighs: every extended start of the search and, with ``more`` (a mirrored first map), more
+    orientation-preserving ones (half as many per stage as it extends)."""
+    pairs = starts.plain(all_starts=True)
+    if more:
+        pairs += starts.preserving(-(-starts.fwd.per_stage // 2))
+    at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
+    return at, pairs_orientation(sx, sy, P, Q, at)
+
+
+def curvature_mismatch(sx, sy, P, Q, img_p, img_q) -> float:
+    """How far a two-sided correspondence is from keeping the smoothed mean curvature
+    (:attr:`ShapeMetric.curvature`): the median of ``|H_X(p) - H_Y(f(p))|`` over X's samples,
+    averaged with the same from Y's. Images inside faces are read at their nearest corner."""
+    hx, hy = sx.curvature, sy.curvature
+    fp, gq = img_p.vertex(sy.mesh.faces), img_q.vertex(sx.mesh.faces)
+    return 0.5 * float(np.median(np.abs(hx[P] - hy[fp])) + np.median(np.abs(hy[Q] - hx[gq])))
+
+
+def _prefer_curvature(sx, sy, P, Q, gm, candidates, fit: _Fit) -> _Fit:
+    """``orientation="prefer"`` for a direct ``fit``: a half turn against the right map.
+
+    Among the clearly direct starts (agreement above 1/2 + ``DIRECT_MARGIN``) whose distortion
+    is within ``TURN_TOL`` of the fit's, the one whose images keep the smoothed mean curvature
+    best (:func:`curvature_mismatch`); if it beats the fit's mismatch by ``TURN_MARGIN``, GMDS
+    from it, and its result replaces the fit when it is still clearly direct, within
+    ``TURN_TOL`` of the distortion and ``TURN_MARGIN`` of the mismatch (:mod:`gromov.curvature`).
+    """
+    from ._arrays import argmin_stable
+
+    at, agreement = candidates
+    d_fit = gm.distortion(fit.img_p, fit.img_q, 2.0)
+    c_fit = curvature_mismatch(sx, sy, P, Q, fit.img_p, fit.img_q)
+    near = [i for i in np.flatnonzero(agreement > 0.5 + DIRECT_MARGIN)
+            if gm.distortion(*at[i], 2.0) <= (1.0 + TURN_TOL) * d_fit]
+    if not near:
+        return fit
+    mismatch = np.array([curvature_mismatch(sx, sy, P, Q, *at[i]) for i in near])
+    best = int(near[argmin_stable(mismatch)])
+    if not mismatch.min() < (1.0 - TURN_MARGIN) * c_fit:
+        return fit
+    h0 = len(gm.history)
+    alt = gm.solve(*at[best])
+    o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
+    if (o_alt > 0.5 + DIRECT_MARGIN and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + TURN_TOL) * d_fit
+            and curvature_mismatch(sx, sy, P, Q, alt[0], alt[1]) < (1.0 - TURN_MARGIN) * c_fit):
+        return _Fit(*alt, gm.history[h0:], o_alt)
+    return fit
 
 
 def _ranking(sx, sy, P, Q, fit: _Fit, dx, dy, diam, discrete, rank_tau_scale, rank_residual) -> float:

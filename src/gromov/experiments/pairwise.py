@@ -84,9 +84,10 @@ def _pair_of(x: ShapeMetric, y: ShapeMetric, ij, options: dict, *, matrix: bool,
     full = None
     if keep:
         full = r
-        # mirrored: the same run, then more (NaN -- a point cloud, a non-orientable mesh --
-        # has no orientation to prefer, and "prefer" would give the same map)
-        if orientation == "prefer" and not r.orientation > 0.5 and np.isfinite(r.orientation):
+        # the map "prefer" gives: a mirror image replaced by a direct map, a half turn by the
+        # right map (NaN -- a point cloud, a non-orientable mesh -- has no orientation to
+        # prefer, and "prefer" would give the same map)
+        if orientation == "prefer" and np.isfinite(r.orientation):
             full = _match(x, y, x.metric, orientation="prefer", as_prepared=True, **options)
     return r.distance, r.relative_distance, r.ranking_distance, full
 
