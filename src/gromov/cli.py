@@ -1097,7 +1097,8 @@ def _match_parser(sub) -> None:
                         "farthest point samples of each shape (e.g. 500; default: all vertices)")
     q.add_argument("--orientation", choices=("prefer", "ignore"), default="prefer",
                    help="prefer (default): among near-optimal maps, one that keeps the surfaces' "
-                        "orientation rather than a mirror image; ignore: the lowest distortion found")
+                        "orientation rather than a mirror image, and their bending rather than a half "
+                        "turn; ignore: the lowest distortion found")
     q.add_argument("--signature-weight", type=_nonnegative_float, default=None, metavar="W",
                    help="weight of the distance signatures in the extra coarse stages of GMDS's "
                         "initial search (default: gromov.match's; 0: distances only)")

@@ -631,7 +631,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     orientation : {"prefer", "ignore"}, default "prefer"
         "prefer": a mirrored map is replaced by an orientation-preserving one within
         ``ORIENTATION_TOL`` (10%) of its distortion, or by its composition with a reflection
-        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`).
+        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`); a
+        direct map by another within ``TURN_TOL`` (10%) that keeps the smoothed mean
+        curvature better by ``TURN_MARGIN`` (a body turned half about its long axis against
+        the right map: :mod:`gromov.curvature`). "ignore": the lowest distortion found.
     search : SearchOptions, optional
         The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
     dense : bool, "zoomout" or "placed", default False
