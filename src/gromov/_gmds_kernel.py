@@ -232,8 +232,9 @@ def pair_distances(vt, vu, fixed, D, F, square):
     """Interpolated distances ``(k, k + l)`` from the moving points to [moving, fixed] points.
 
     ``D``: vertex distances, squared as they are read when ``square`` (else squared
-    distances; a flag, not a default, so that both callers share one compilation). Row i first forms ``u_i^T D2[F_{t_i}, :]`` (three contiguous rows of ``D``,
-    read in order), then reads it at the others' corners: the same interpolant as
+    distances; a flag, not a default, so that both callers share one compilation). Row i first
+    forms ``u_i^T D2[F_{t_i}, :]`` (three contiguous rows of ``D``, read in order), then reads it
+    at the others' corners: the same interpolant as
     :func:`_build_a` with far fewer scattered reads of the large matrix.
     """
     k = vt.shape[0]

@@ -718,7 +718,7 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
         starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
         fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
         if prefer:
-            candidates = _direct_candidates(sx, sy, P, Q, starts, more=not fit.orientation > 0.5)
+            candidates = _direct_candidates(sx, sy, P, Q, gm, starts, more=not fit.orientation > 0.5)
             if not fit.orientation > 0.5:
                 fit = _prefer_direct(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
             if fit.orientation > 0.5:
@@ -879,7 +879,7 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
     the shapes (agreement near 1/2) only if no clearly direct one turns up. ``fit`` if none."""
     from ._arrays import argmin_stable
 
-    at, agreement = candidates
+    at, agreement, scores = candidates
     keep = agreement > 0.5
     d_first = gm.distortion(fit.img_p, fit.img_q, 2.0)
 
@@ -893,7 +893,6 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
 
     found = partial = None
     if keep.any():  # the best orientation-preserving start
-        scores = np.array([gm.distortion(a, b, 2.0) for a, b in at])
         alt = attempt(at[int(np.flatnonzero(keep)[argmin_stable(scores[keep])])], ORIENTATION_TOL)
         if alt is not None and alt.orientation > 0.5 + DIRECT_MARGIN:
             found = alt
@@ -919,15 +918,16 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
     return found or partial or fit
 
 
-def _direct_candidates(sx, sy, P, Q, starts, more: bool):
-    """``(starts as surface points, their orientation agreements)`` that ``orientation="prefer"``
-    weighs: every extended start of the search and, with ``more`` (a mirrored first map), more
-    orientation-preserving ones (half as many per stage as it extends)."""
+def _direct_candidates(sx, sy, P, Q, gm, starts, more: bool):
+    """``(starts as surface points, their orientation agreements, their two-sided L2
+    distortions)`` that ``orientation="prefer"`` weighs: every extended start of the search and,
+    with ``more`` (a mirrored first map), more orientation-preserving ones (half as many per
+    stage as it extends)."""
     pairs = starts.plain(all_starts=True)
     if more:
         pairs += starts.preserving(-(-starts.fwd.per_stage // 2))
     at = [_at_vertices(sx, sy, a, b) for a, b in pairs]
-    return at, pairs_orientation(sx, sy, P, Q, at)
+    return at, pairs_orientation(sx, sy, P, Q, at), np.array([gm.distortion(a, b, 2.0) for a, b in at])
 
 
 def curvature_mismatch(sx, sy, P, Q, img_p, img_q) -> float:
@@ -950,12 +950,11 @@ def _prefer_curvature(sx, sy, P, Q, gm, candidates, fit: _Fit) -> _Fit:
     """
     from ._arrays import argmin_stable
 
-    at, agreement = candidates
+    at, agreement, scores = candidates
     d_fit = gm.distortion(fit.img_p, fit.img_q, 2.0)
     c_fit = curvature_mismatch(sx, sy, P, Q, fit.img_p, fit.img_q)
-    near = [i for i in np.flatnonzero(agreement > 0.5 + DIRECT_MARGIN)
-            if gm.distortion(*at[i], 2.0) <= (1.0 + TURN_TOL) * d_fit]
-    if not near:
+    near = np.flatnonzero((agreement > 0.5 + DIRECT_MARGIN) & (scores <= (1.0 + TURN_TOL) * d_fit))
+    if not len(near):
         return fit
     mismatch = np.array([curvature_mismatch(sx, sy, P, Q, *at[i]) for i in near])
     best = int(near[argmin_stable(mismatch)])
