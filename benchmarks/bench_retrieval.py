@@ -34,7 +34,7 @@ from gromov.store import ShapeStore
 SHAPES = ([f"wolf{i}" for i in range(3)] + [f"horse{i}" for i in (0, 5, 6, 7, 10)]
           + [f"centaur{i}" for i in range(4)] + [f"michael{i}" for i in range(4)]
           + [f"gorilla{i}" for i in (1, 5, 8, 14)])
-SLACKS = (0.25, 0.5, 0.75, 1.0)
+SLACKS = (0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.75, 1.0)
 KS = (1, 3, 5)
 
 

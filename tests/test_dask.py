@@ -62,6 +62,38 @@ def test_a_dask_matrix_is_the_local_pools_bit_for_bit(client, local):
     assert not any(_held(client).values())
 
 
+def test_prepared_shapes_reach_workers_that_ran_no_gromov_task_yet(local):
+    """Prepared ShapeMetric objects are sent with gromov's own serializer: a fresh cluster,
+    whose workers have imported nothing of gromov, reads them."""
+    shapes = [gromov.ShapeMetric(m, "diffusion", resolution=None) for m in _sheets()]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster, distributed.Client(cluster) as c:
+        assert not any(c.run(lambda: "gromov._dask" in sys.modules).values())
+        r = gh_matrix(shapes, client=c, **OPTS)
+    _assert_same(r, local)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc")
+def test_workers_reuse_the_memory_they_free(client, local):
+    """Dask starts workers with MALLOC_TRIM_THRESHOLD_ set, which maps every block over 128 kB
+    afresh; once gromov has run there, a freed work array is reused instead of faulted in again."""
+    gh_matrix(_sheets()[:2], client=client, **OPTS)
+
+    def faults():
+        import resource
+
+        blocks = []
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+        for _ in range(20):
+            blocks.append(np.ones(1 << 19))   # 4 MB
+            blocks.pop()
+        return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+
+    pages = (1 << 22) // 4096
+    got = client.run(faults)
+    assert all(f < 5 * pages for f in got.values()), got   # 20 blocks faulted afresh: 20,480 pages
+
+
 def test_shapes_stay_on_their_workers_and_pairs_go_to_them(client, local):
     """A worker receives a shape for a run of pairs, not with each pair: fewer shapes cross
     between the two workers than there are pairs of shapes held by different workers."""

@@ -6,7 +6,8 @@ without loading numba, scipy or the compiled kernels. Each is documented where i
 ``RANK_TAU_SCALE``, ``RANK_RESIDUAL``), :mod:`gromov.perturb` (``WELD_JOINS``), :mod:`gromov.io`
 (``GZIP_RATIO``, ``GZIP_FLOOR``), :mod:`gromov.metrics` (``DIFFUSION_FILL_HOLES``),
 :mod:`gromov.metrics.diffusion` (``HEAT_UNITS``, ``DEFAULT_UNITS``) and
-:mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``).
+:mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``) and :mod:`gromov.retrieval`
+(``PROFILE_SLACK``).
 """
 
 DEFAULT_RESOLUTION = 3000
@@ -20,3 +21,4 @@ DIFFUSION_FILL_HOLES = 0.5
 HEAT_UNITS = ("normalized", "raw", "length")
 DEFAULT_UNITS = "raw"
 LOCAL_SCALING_K = 4
+PROFILE_SLACK = 0.3

@@ -22,8 +22,8 @@ from . import __version__
 from ._atomic import atomic_path, atomic_savez_compressed
 from ._json import finite as _finite
 from ._defaults import (DEFAULT_RESOLUTION, DEFAULT_UNITS, DIFFUSION_FILL_HOLES, GZIP_FLOOR, GZIP_RATIO,
-                        HEAT_UNITS, LOCAL_SCALING_K, RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE,
-                        WELD_JOINS)
+                        HEAT_UNITS, LOCAL_SCALING_K, PROFILE_SLACK, RANK_RESIDUAL, RANK_RESIDUALS,
+                        RANK_TAU_SCALE, WELD_JOINS)
 from .errors import GromovError
 
 __all__ = ["main"]
@@ -1183,9 +1183,9 @@ def _search_parser(sub) -> None:
                         "default; recall 1.0 on the validation sets, not guaranteed), only those "
                         "whose lower bound does (bound: the same neighbours as matching every "
                         "shape), or none")
-    q.add_argument("--slack", type=_positive_float, default=0.25, metavar="S",
+    q.add_argument("--slack", type=_positive_float, default=PROFILE_SLACK, metavar="S",
                    help="--prune profile: skip a shape when S times its profile gap exceeds the "
-                        "k-th distance found (default 0.25; larger skips more)")
+                        f"k-th distance found (default {PROFILE_SLACK:g}; larger skips more)")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)

@@ -569,6 +569,7 @@ def _dask_prepare(client, shapes: list, metric: str, store, per_shape: dict, pro
     from tqdm import tqdm
 
     _dask = _dask_module()
+    _dask.prepare_workers(client)
     addresses = list(_dask.worker_threads(client))
     n = len(shapes)
     homes = _dask.spread(n, len(addresses))
