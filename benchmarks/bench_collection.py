@@ -2,7 +2,7 @@
 
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_collection.py [--data DIR] [--classes cat,wolf,...]
           [--jobs 2] [--store DIR] [--json benchmarks/results/collection.json]
-          [--skip rematch,kill,retrieval,dask] [--dask-classes centaur,horse]
+          [--skip rematch,kill,retrieval,dask] [--dask-classes centaur,horse] [--only dask]
 
 The shapes are TOSCA's (:class:`gromov.experiments.datasets.TOSCA`: 80 shapes of 9 classes;
 ``--classes`` a subset), matched with the defaults of ``gromov pairwise`` (diffusion metric, heat
@@ -31,7 +31,9 @@ fresh folders under ``--store``.
    (:func:`gromov._dask.client_for`) and :func:`gromov.experiments.gh_matrix` with ``client`` --
    against ``gh_matrix(jobs=2)``, both without a store, in this process: pairs per second of the
    matching alone and of the whole run (cluster start, metrics and pairs), and whether the
-   matrices are identical.
+   matrices are identical. ``--only dask`` runs this part alone and writes only it (a larger
+   comparison: ``--only dask --dask-classes centaur,horse,david,gorilla --json
+   benchmarks/results/collection_dask.json``, 25 shapes, 300 pairs).
 
 7. kill: a fresh store S2; ``gromov pairwise`` killed (SIGKILL to its process group) once 30%
    of the pairs are recorded in S2's catalogue (read-only polling), started again and killed at
@@ -231,6 +233,15 @@ def dask_rows(files, jobs: int) -> dict:
     return rows
 
 
+def print_dask(d: dict) -> None:
+    print(f"6 dask ({d['shapes']} shapes, {d['pairs']} pairs): --jobs {d['workers']} {d['jobs']['seconds']:.1f} s "
+          f"(pairs {d['jobs']['match']:.1f} s), LocalCluster of {d['workers']} {d['dask']['seconds']:.1f} s "
+          f"(start {d['dask']['cluster_start']:.1f} s, pairs {d['dask']['match']:.1f} s); throughput "
+          f"dask / jobs: pairs {d['throughput_ratio_match']:.2f}, metrics and pairs "
+          f"{d['throughput_ratio_without_start']:.2f}, whole run {d['throughput_ratio_total']:.2f}; "
+          f"identical matrices: {d['identical']}")
+
+
 # ----------------------------------------------------------------------------- main
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -243,6 +254,9 @@ def main(argv=None) -> None:
     ap.add_argument("--json", default=str(HERE / "results" / "collection.json"))
     ap.add_argument("--skip", default="", help=f"comma-separated parts to leave out: {', '.join(PARTS)}")
     ap.add_argument("--dask-classes", default="centaur,horse", help="the classes of the Dask comparison")
+    ap.add_argument("--only", choices=("dask",), default=None,
+                    help="run only this part, with its own results file (e.g. --only dask --dask-classes "
+                         "centaur,horse,david,gorilla --json benchmarks/results/collection_dask.json)")
     args = ap.parse_args(argv)
     skip = {s for s in args.skip.split(",") if s}
     if skip - set(PARTS):
@@ -259,6 +273,12 @@ def main(argv=None) -> None:
     def files_of(classes):
         return [tosca.path(c, p) for c in classes for p in tosca.poses(c)]
 
+    if args.only == "dask":
+        d = dask_rows([str(f) for f in files_of(classes_of(args.dask_classes))], args.jobs)
+        print_dask(d)
+        write_results(args.json, {"command": "python benchmarks/bench_collection.py " + shlex.join(
+            argv if argv is not None else sys.argv[1:]), "jobs": args.jobs, "dask": d, "complete": True})
+        return
     classes = classes_of(args.classes)
     files = files_of(classes)
     n = len(files)
@@ -340,12 +360,7 @@ def main(argv=None) -> None:
         if "dask" not in skip:
             dfiles = [str(f) for f in files_of(classes_of(args.dask_classes))]
             d = res["dask"] = dask_rows(dfiles, args.jobs)
-            print(f"6 dask ({d['shapes']} shapes, {d['pairs']} pairs): --jobs {args.jobs} {d['jobs']['seconds']:.1f} s "
-                  f"(pairs {d['jobs']['match']:.1f} s), LocalCluster of {args.jobs} {d['dask']['seconds']:.1f} s "
-                  f"(start {d['dask']['cluster_start']:.1f} s, pairs {d['dask']['match']:.1f} s); throughput "
-                  f"dask / jobs: pairs {d['throughput_ratio_match']:.2f}, metrics and pairs "
-                  f"{d['throughput_ratio_without_start']:.2f}, whole run {d['throughput_ratio_total']:.2f}; "
-                  f"identical matrices: {d['identical']}")
+            print_dask(d)
             save()
         # 7. killed at 30% and 70%, resumed
         if "kill" not in skip:

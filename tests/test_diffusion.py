@@ -309,3 +309,17 @@ def test_heat_distance_at_another_time_on_a_filled_mesh():
     assert half.n_vertices == holed.n_vertices and half.embedding.shape[0] == holed.n_vertices
     ref = metric_solver(holed, "diffusion", kernel="heat", units="raw", tau=0.0025).pairwise()
     assert np.abs(half.pairwise() - ref).max() < 1e-3 * ref.max()
+
+
+def test_heat_distances_do_not_depend_on_the_blas_threads():
+    """The dense heat distances are the same to the last bit whatever BLAS threads the process
+    allows (they were not: a threaded product sums in another order), so a shape computed in a
+    process with a thread limit in force equals one computed without."""
+    from threadpoolctl import threadpool_limits
+
+    shape = icosphere(4)   # 2,562 vertices: a product that BLAS splits between threads
+    out = []
+    for limit in (1, 2, None):
+        with threadpool_limits(limits=limit, user_api="blas"):
+            out.append(metric_solver(shape, "diffusion", kernel="heat").pairwise())
+    assert out[0].tobytes() == out[1].tobytes() == out[2].tobytes()

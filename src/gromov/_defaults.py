@@ -5,7 +5,7 @@ without loading numba, scipy or the compiled kernels. Each is documented where i
 (re-exported there under the same name): :mod:`gromov.gh` (``DEFAULT_RESOLUTION``,
 ``RANK_TAU_SCALE``, ``RANK_RESIDUAL``), :mod:`gromov.perturb` (``WELD_JOINS``), :mod:`gromov.io`
 (``GZIP_RATIO``, ``GZIP_FLOOR``), :mod:`gromov.metrics` (``DIFFUSION_FILL_HOLES``),
-:mod:`gromov.metrics.diffusion` (``HEAT_UNITS``, ``DEFAULT_UNITS``) and
+:mod:`gromov.metrics.diffusion` (``HEAT_UNITS``, ``DEFAULT_UNITS``),
 :mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``) and :mod:`gromov.retrieval`
 (``PROFILE_SLACK``).
 """
