@@ -517,7 +517,7 @@ def _blas_threads() -> dict:
 def _dask_shape(source, label: str, metric: str, store, per_shape: dict, blas: dict):
     """On a worker: ``(ShapeMetric, info)`` of one shape, prepared as :func:`prepare` does
     (read from or added to the store ``(folder, load)`` if given), with ``blas`` threads
-    (:func:`_blas_threads` of the calling process: a dense metric's last bits depend on them).
+    (:func:`_blas_threads` of the calling process), as that process would compute it.
     ``info``: its working vertices and, with a store, its entry key, whether it was read back
     and the store's warnings."""
     from threadpoolctl import threadpool_limits
