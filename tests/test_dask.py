@@ -94,6 +94,21 @@ def test_workers_reuse_the_memory_they_free(client, local):
     assert all(f < 5 * pages for f in got.values()), got   # 20 blocks faulted afresh: 20,480 pages
 
 
+def test_a_local_cluster_leaves_this_process_environment_as_it_was():
+    """Dask's nanny writes its workers' settings (OPENBLAS_NUM_THREADS=1,
+    MALLOC_TRIM_THRESHOLD_...) into the starting process's environment, where every process
+    started later inherited them; the workers still get them."""
+    import os
+
+    from gromov._dask import client_for
+
+    before = dict(os.environ)
+    with client_for(n_workers=1) as c:
+        assert dict(os.environ) == before
+        assert set(c.run(lambda: os.environ.get("OPENBLAS_NUM_THREADS")).values()) == {"1"}
+    assert dict(os.environ) == before
+
+
 def test_shapes_stay_on_their_workers_and_pairs_go_to_them(client, local):
     """A worker receives a shape for a run of pairs, not with each pair: fewer shapes cross
     between the two workers than there are pairs of shapes held by different workers."""

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import logging
+import os
 import time
 
 import numpy as np
@@ -189,10 +190,33 @@ def client_for(*, scheduler: str | None = None, n_workers: int | None = None):
             except (OSError, TimeoutError) as exc:
                 raise ValueError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         else:   # a free port for the scheduler's web pages: several runs at once do not collide
-            cluster = stack.enter_context(distributed.LocalCluster(
-                n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0"))
+            saved = dict(os.environ)
+            stack.callback(_restore_environ, saved)   # after the cluster closes (a restart sets them again)
+            try:
+                cluster = stack.enter_context(distributed.LocalCluster(
+                    n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0"))
+            finally:
+                _restore_environ(saved)
             client = distributed.Client(cluster)
         yield stack.enter_context(client)
+
+
+def _restore_environ(saved: dict) -> None:
+    """Put this process's environment back as ``saved``.
+
+    Dask's nanny writes its settings for new workers (``distributed.nanny.pre-spawn-environ``:
+    ``OPENBLAS_NUM_THREADS=1``, ``OMP_NUM_THREADS=1``, ``MALLOC_TRIM_THRESHOLD_=65536``...) into
+    the environment of the process that starts the cluster, where they stay: every process it
+    started afterwards ran BLAS on one thread and mapped every block over 128 kB afresh (the
+    ``gromov pairwise`` runs a benchmark started after a ``LocalCluster`` computed heat distances
+    that differ from its earlier runs' in the last bits). The workers get the settings from the
+    nanny itself, at every start.
+    """
+    for key in set(os.environ) - set(saved):
+        del os.environ[key]
+    for key, value in saved.items():
+        if os.environ.get(key) != value:
+            os.environ[key] = value
 
 
 def worker_threads(client, wait: float = WORKER_WAIT_S) -> dict[str, int]:
