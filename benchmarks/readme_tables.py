@@ -167,7 +167,7 @@ def anchors_table() -> str:
         f"| farthest point sampling, {big['points']:,} points → {big['samples']:,} | "
         f"{_secs(big['ours_s'])} | {_secs(big['fpsample_vanilla_s'])} / "
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
-        *collection_rows(load("collection.json")),
+        *collection_rows(load("collection.json"), load("collection_resume.json")),
     ]
     return "\n".join(rows)
 
@@ -176,16 +176,17 @@ def _minutes(s: float) -> str:
     return f"{s / 60:.1f} min" if s >= 120 else f"{s:.0f} s"
 
 
-def collection_rows(r: dict) -> list[str]:
-    """bench_collection.py, as rows of the anchors table: a collection, its Dask run, its retrieval."""
-    sc, again, kill, d = r["scratch"], r["again"], r["kill"], r["dask"]
-    ret, rec = r["retrieval"]["rows"], r["recognition"]
+def collection_rows(r: dict, runs: dict) -> list[str]:
+    """bench_collection.py, as rows of the anchors table: a collection (the runs of ``runs``), its
+    Dask run and its retrieval (``r``)."""
+    sc, again, kill, d = runs["scratch"], runs["again"], runs["kill"], r["dask"]
+    ret, rec = r["retrieval"]["rows"], runs["recognition"]
 
     def same(x):
         return "same matrices" if x["identical"] else "**other matrices**"
 
     return [
-        f"| {r['shapes']} TOSCA shapes, all {r['pairs']:,} pairs, 2 cores: from scratch; killed at 30% and 70% "
+        f"| {runs['shapes']} TOSCA shapes, all {runs['pairs']:,} pairs, 2 cores: from scratch; killed at 30% and 70% "
         f"and resumed ({same(kill)}); again on its store ({same(again)}); nearest-neighbour accuracy, EER | "
         f"{_minutes(sc['seconds'])}; {_minutes(kill['seconds'])}; {_minutes(again['seconds'])}; "
         f"{_pct(rec['nn_accuracy'])}, {_pct(rec['eer'])} | |",
@@ -208,8 +209,8 @@ RETRIEVAL_LABELS = {"nearest profile": "one query at a time (`gromov search`), d
                     "knn_pairs bound": "every shape at once, exact pruning"}
 
 
-def collection_table(r: dict) -> str:
-    """bench_collection.py: the runs, recognition, retrieval and Dask rows."""
+def collection_runs(r: dict) -> str:
+    """bench_collection.py: the runs alone (from scratch, again, killed and resumed) and recognition."""
     base = r["scratch"]["seconds"]
     sc, again, kill = r["scratch"], r["again"], r["kill"]
     rows = ["| run | seconds | × from scratch | notes |", "|---|---:|---:|---|",
@@ -225,9 +226,15 @@ def collection_table(r: dict) -> str:
     rec = r["recognition"]
     rows += ["", f"Nearest-neighbour accuracy {_pct(rec['nn_accuracy'])}; EER {_pct(rec['eer'])} (by the GH "
              f"estimate {_pct(rec['eer_gh'])}, after local scaling with k = {rec['local_scaling_k']} "
-             f"{_pct(rec['eer_local'])}).", "",
-             f"| the {r['retrieval']['k']} nearest | recall | queries as brute force | full matches | fewer |",
-             "|---|---:|---:|---:|---:|"]
+             f"{_pct(rec['eer_local'])})."]
+    return "\n".join(rows)
+
+
+def collection_table(r: dict) -> str:
+    """bench_collection.py: the runs, recognition, retrieval and Dask rows."""
+    rows = [collection_runs(r), "",
+            f"| the {r['retrieval']['k']} nearest | recall | queries as brute force | full matches | fewer |",
+            "|---|---:|---:|---:|---:|"]
     for name, row in r["retrieval"]["rows"].items():
         rows.append(f"| {RETRIEVAL_LABELS.get(name, name)} | {row['recall']:.3f} | {row['exact_queries']}/{row['queries']} | "
                     f"{row['full_matches']:,}/{row['pairs']:,} | {row['fewer']:.1f}× |")
@@ -386,7 +393,8 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
             ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
             ("speed.json", speed_table(load("speed.json"))),
-            ("collection.json", collection_table(load("collection.json")))]
+            ("collection.json", collection_table(load("collection.json"))),
+            ("collection_resume.json", collection_runs(load("collection_resume.json")))]
 
 
 def main(argv=None) -> None:

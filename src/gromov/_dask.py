@@ -93,20 +93,21 @@ def _loads_shape(header, frames) -> ShapeMetric:
     return pickle_loads(header, frames)
 
 
-class _ShapesReadable(distributed.WorkerPlugin):
-    """Makes each worker, present or joining later, import this module, which registers how a
-    :class:`ShapeMetric` is read (:func:`_loads_shape`): without it a worker that has run no
-    gromov task yet cannot receive a prepared shape ("No dispatch for ShapeMetric")."""
+class _WorkerSetup(distributed.WorkerPlugin):
+    """Sets up each worker, present or joining later, for gromov: imports this module, which
+    registers how a :class:`ShapeMetric` is read (:func:`_loads_shape`; without it a worker that
+    has run no gromov task yet cannot receive a prepared shape: "No dispatch for ShapeMetric"),
+    and lets it reuse the memory its matches free (:func:`reuse_freed_memory`)."""
 
     def setup(self, worker) -> None:
-        from gromov import _dask   # the import registers the serializers
+        from gromov import _dask
 
         _dask.reuse_freed_memory()
 
 
 def prepare_workers(client) -> None:
-    """Register :class:`_ShapesReadable` on the client's cluster (once per name: again replaces it)."""
-    client.register_plugin(_ShapesReadable(), name="gromov-shapes-readable")
+    """Register :class:`_WorkerSetup` on the client's cluster (registering it again replaces it)."""
+    client.register_plugin(_WorkerSetup(), name="gromov-worker-setup")
 
 
 #: glibc ``mallopt`` parameters (``malloc.h``).
