@@ -150,12 +150,10 @@ _BLAS_LIMITED = False
 
 def one_thread() -> None:
     """Run this task on one thread: numba's parallel kernels (this thread's setting) and the
-    BLAS pool (the worker process's); a worker runs as many tasks at once as it has threads.
-    Also :func:`reuse_freed_memory`."""
+    BLAS pool (the worker process's); a worker runs as many tasks at once as it has threads."""
     global _BLAS_LIMITED
     import numba
 
-    reuse_freed_memory()
     numba.set_num_threads(1)
     if not _BLAS_LIMITED:
         from threadpoolctl import threadpool_limits
