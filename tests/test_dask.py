@@ -109,6 +109,35 @@ def test_a_local_cluster_leaves_this_process_environment_as_it_was():
     assert dict(os.environ) == before
 
 
+def test_the_local_cluster_keeps_each_result_on_its_home_worker():
+    """Dask's ReduceReplicas drops the extra copy from the worker using the most memory, here
+    the result's home (it also holds a larger block), which then receives it back for its next
+    task; HomeReplicas drops the copy elsewhere. The cluster runs gromov's settings."""
+    from gromov._dask import LOCAL_CLUSTER_CONFIG, client_for
+
+    with client_for(n_workers=2) as c:
+        a, b = sorted(c.scheduler_info(n_workers=-1)["workers"])
+        ballast = c.submit(np.ones, 4_000_000, workers=[a], pure=False)   # 32 MB more on a
+        x = c.submit(np.arange, 1000, workers=[a], allow_other_workers=True, pure=False)
+        distributed.wait([ballast, x])
+        c.replicate([x], n=2)
+        assert set(c.who_has([x])[x.key]) == {a, b}
+        c.amm.run_once()
+        deadline = time.monotonic() + 30
+        while len(c.who_has([x])[x.key]) > 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert set(c.who_has([x])[x.key]) == {a}
+        policies = c.run_on_scheduler(lambda dask_scheduler: [type(p).__name__ for p in
+                                                               dask_scheduler.extensions["amm"].policies])
+        assert policies == ["HomeReplicas"]
+        import dask
+
+        names = [k for k in LOCAL_CLUSTER_CONFIG if k.startswith("distributed.worker.")]
+        got = c.run(lambda: {k: dask.config.get(k) for k in names})
+        assert all(v == {k: LOCAL_CLUSTER_CONFIG[k] for k in names} for v in got.values()), got
+    assert dask.config.get("distributed.worker.profile.enabled") is True   # this process: as it was
+
+
 def test_shapes_stay_on_their_workers_and_pairs_go_to_them(client, local):
     """A worker receives a shape for a run of pairs, not with each pair: fewer shapes cross
     between the two workers than there are pairs of shapes held by different workers."""
