@@ -29,9 +29,10 @@ fresh folders under ``--store``.
 6. dask: on ``--dask-classes`` (default centaur and horse, 14 shapes), what
    ``gromov pairwise --dask 2`` runs -- a ``LocalCluster`` of 2 one-thread workers
    (:func:`gromov._dask.client_for`) and :func:`gromov.experiments.gh_matrix` with ``client`` --
-   against ``gh_matrix(jobs=2)``, both without a store, in this process: pairs per second of the
-   matching alone and of the whole run (cluster start, metrics and pairs), and whether the
-   matrices are identical. ``--only dask`` runs this part alone and writes only it (a larger
+   against ``gh_matrix(jobs=2)``, both without a store, in this process, ``--dask-rounds`` times
+   by turns (default 3): pairs per second of the matching alone and of the whole run (cluster
+   start, metrics and pairs), each round's ratios and their medians, and whether the matrices
+   are identical. ``--only dask`` runs this part alone and writes only it (a larger
    comparison: ``--only dask --dask-classes centaur,horse,david,gorilla --json
    benchmarks/results/collection_dask.json``, 25 shapes, 300 pairs).
 
@@ -202,43 +203,55 @@ def retrieval_rows(shapes, D, R, T, k: int) -> dict:
 
 
 # ----------------------------------------------------------------------------- dask
-def dask_rows(files, jobs: int) -> dict:
+def dask_rows(files, jobs: int, rounds: int = 3) -> dict:
     """``gh_matrix`` on a LocalCluster of ``jobs`` one-thread workers and with ``jobs`` worker
-    processes: seconds, pairs per second, identical matrices."""
+    processes, ``rounds`` times by turns: seconds, the ratios of each round and their medians
+    (the machine's noise moves one round's ratio by about 10%), identical matrices."""
     from gromov._dask import client_for
     from gromov.experiments.pairwise import gh_matrix
 
     n = len(files)
     pairs = n * (n - 1) // 2
-    t = time.perf_counter()
-    ref = gh_matrix(files, "diffusion", jobs=jobs)
-    t_jobs = time.perf_counter() - t
-    gc.collect()
-    t = time.perf_counter()
-    with client_for(n_workers=jobs) as client:
-        t_start = time.perf_counter() - t
-        got = gh_matrix(files, "diffusion", client=client)
-    t_dask = time.perf_counter() - t   # cluster start and close included
-    rows = {"shapes": n, "pairs": pairs, "workers": jobs,
-            "jobs": {"seconds": t_jobs, "prepare": ref.seconds_prepare, "match": ref.seconds_match},
-            "dask": {"seconds": t_dask, "cluster_start": t_start, "prepare": got.seconds_prepare,
-                     "match": got.seconds_match},
-            "identical": bool(all(np.array_equal(a, b) for a, b in ((ref.distance, got.distance),
-                                                                     (ref.relative, got.relative),
-                                                                     (ref.trimmed, got.trimmed))))}
-    rows["throughput_ratio_match"] = ref.seconds_match / got.seconds_match
-    rows["throughput_ratio_total"] = t_jobs / t_dask
-    rows["throughput_ratio_without_start"] = ((ref.seconds_prepare + ref.seconds_match)
-                                              / (got.seconds_prepare + got.seconds_match))
+    out = []
+    identical = True
+    for _ in range(rounds):
+        t = time.perf_counter()
+        ref = gh_matrix(files, "diffusion", jobs=jobs)
+        t_jobs = time.perf_counter() - t
+        gc.collect()
+        t = time.perf_counter()
+        with client_for(n_workers=jobs) as client:
+            t_start = time.perf_counter() - t
+            got = gh_matrix(files, "diffusion", client=client)
+        t_dask = time.perf_counter() - t   # cluster start and close included
+        gc.collect()
+        identical &= bool(all(np.array_equal(a, b) for a, b in ((ref.distance, got.distance),
+                                                                (ref.relative, got.relative),
+                                                                (ref.trimmed, got.trimmed))))
+        out.append({"jobs": {"seconds": t_jobs, "prepare": ref.seconds_prepare, "match": ref.seconds_match},
+                    "dask": {"seconds": t_dask, "cluster_start": t_start, "prepare": got.seconds_prepare,
+                             "match": got.seconds_match},
+                    "throughput_ratio_match": ref.seconds_match / got.seconds_match,
+                    "throughput_ratio_total": t_jobs / t_dask,
+                    "throughput_ratio_without_start": ((ref.seconds_prepare + ref.seconds_match)
+                                                       / (got.seconds_prepare + got.seconds_match))})
+    mid = sorted(range(rounds), key=lambda i: out[i]["throughput_ratio_match"])[rounds // 2]
+    rows = {"shapes": n, "pairs": pairs, "workers": jobs, "rounds": out, "median_round": mid,
+            "jobs": out[mid]["jobs"], "dask": out[mid]["dask"], "identical": identical}
+    for key in ("throughput_ratio_match", "throughput_ratio_total", "throughput_ratio_without_start"):
+        rows[key] = float(np.median([r[key] for r in out]))
     return rows
 
 
 def print_dask(d: dict) -> None:
-    print(f"6 dask ({d['shapes']} shapes, {d['pairs']} pairs): --jobs {d['workers']} {d['jobs']['seconds']:.1f} s "
-          f"(pairs {d['jobs']['match']:.1f} s), LocalCluster of {d['workers']} {d['dask']['seconds']:.1f} s "
-          f"(start {d['dask']['cluster_start']:.1f} s, pairs {d['dask']['match']:.1f} s); throughput "
-          f"dask / jobs: pairs {d['throughput_ratio_match']:.2f}, metrics and pairs "
-          f"{d['throughput_ratio_without_start']:.2f}, whole run {d['throughput_ratio_total']:.2f}; "
+    for i, r in enumerate(d.get("rounds", [d])):
+        print(f"6 dask ({d['shapes']} shapes, {d['pairs']} pairs), round {i + 1}: --jobs {d['workers']} "
+              f"{r['jobs']['seconds']:.1f} s (pairs {r['jobs']['match']:.1f} s), LocalCluster of {d['workers']} "
+              f"{r['dask']['seconds']:.1f} s (start {r['dask']['cluster_start']:.1f} s, pairs "
+              f"{r['dask']['match']:.1f} s); throughput dask / jobs: pairs {r['throughput_ratio_match']:.2f}, "
+              f"metrics and pairs {r['throughput_ratio_without_start']:.2f}, whole run "
+              f"{r['throughput_ratio_total']:.2f}")
+    print(f"6 dask, medians: pairs {d['throughput_ratio_match']:.2f}, whole run {d['throughput_ratio_total']:.2f}; "
           f"identical matrices: {d['identical']}")
 
 
@@ -254,6 +267,8 @@ def main(argv=None) -> None:
     ap.add_argument("--json", default=str(HERE / "results" / "collection.json"))
     ap.add_argument("--skip", default="", help=f"comma-separated parts to leave out: {', '.join(PARTS)}")
     ap.add_argument("--dask-classes", default="centaur,horse", help="the classes of the Dask comparison")
+    ap.add_argument("--dask-rounds", type=int, default=3,
+                    help="rounds of the Dask comparison, each --jobs then Dask (default 3; medians reported)")
     ap.add_argument("--only", choices=("dask",), default=None,
                     help="run only this part, with its own results file (e.g. --only dask --dask-classes "
                          "centaur,horse,david,gorilla --json benchmarks/results/collection_dask.json)")
@@ -274,7 +289,7 @@ def main(argv=None) -> None:
         return [tosca.path(c, p) for c in classes for p in tosca.poses(c)]
 
     if args.only == "dask":
-        d = dask_rows([str(f) for f in files_of(classes_of(args.dask_classes))], args.jobs)
+        d = dask_rows([str(f) for f in files_of(classes_of(args.dask_classes))], args.jobs, args.dask_rounds)
         print_dask(d)
         write_results(args.json, {"command": "python benchmarks/bench_collection.py " + shlex.join(
             argv if argv is not None else sys.argv[1:]), "jobs": args.jobs, "dask": d, "complete": True})
@@ -359,7 +374,7 @@ def main(argv=None) -> None:
         # 6. Dask
         if "dask" not in skip:
             dfiles = [str(f) for f in files_of(classes_of(args.dask_classes))]
-            d = res["dask"] = dask_rows(dfiles, args.jobs)
+            d = res["dask"] = dask_rows(dfiles, args.jobs, args.dask_rounds)
             print_dask(d)
             save()
         # 7. killed at 30% and 70%, resumed
