@@ -248,10 +248,10 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 11
+    assert len(tables) == 12
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
-    foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed, collection, resume = (
+    foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed, collection, resume, dask = (
         t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
@@ -281,6 +281,9 @@ def test_benchmark_page_tables_are_the_results_files():
     re = _json("collection_resume.json")
     assert re["complete"] and re["shapes"] == 80
     assert f"same matrices: {'yes' if re['kill']['identical'] else 'no'};" in resume
+    da = _json("collection_dask.json")["dask"]
+    ratios = sorted(x["throughput_ratio_match"] for x in da["rounds"])
+    assert f"| median | | | {ratios[len(ratios) // 2]:.2f}× |" in dask
 
 
 def test_cloud_sampling_benchmark_compares_like_with_like():
