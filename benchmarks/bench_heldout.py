@@ -79,6 +79,27 @@ def _distortion(dx, p, dy, q, diam, keep: float = 1.0) -> float:
     return float(trimmed_rms((a - b)[off], keep) / diam)
 
 
+def round_metrics_to_float32() -> None:
+    """From now on, every dense metric matrix is rounded to float32 once computed (and read as
+    float64): what keeping the matrices in float32 would give the matches."""
+    from gromov.metrics import _base, _fmm, diffusion
+
+    def rounded(pairwise):
+        def wrapper(self, *args, **kwargs):
+            d = pairwise(self, *args, **kwargs)
+            if not getattr(self, "_rounded_to_float32", False):
+                d.flags.writeable = True
+                d[...] = d.astype(np.float32)
+                d.flags.writeable = False
+                self._rounded_to_float32 = True
+            return d
+        return wrapper
+
+    for cls in {c for m in (_base, _fmm, diffusion) for c in vars(m).values()
+                if isinstance(c, type) and "pairwise" in vars(c)}:
+        cls.pairwise = rounded(vars(cls)["pairwise"])
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
@@ -98,8 +119,12 @@ def main(argv=None):
     ap.add_argument("--radius", type=float, default=None, metavar="F",
                     help="partial matching: GMDS counts only sample pairs closer than F times the "
                          "larger diameter (gromov.match's radius; default: all pairs)")
+    ap.add_argument("--float32", action="store_true",
+                    help="round every dense metric matrix to float32 (what float32 storage would give)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
+    if args.float32:
+        round_metrics_to_float32()
     tosca = TOSCA(Path(args.data) / "tosca")
     shapes = _Shapes(tosca, 3000, args.weld_join)
     names = args.metrics.split(",")
@@ -179,6 +204,7 @@ def main(argv=None):
                                                "weld_join": args.weld_join, "fill_holes": args.fill_holes,
                                                "search_vertices": args.search_vertices,
                                                "orientation": args.orientation, "radius": args.radius,
+                                               "float32": args.float32,
                                                "samples": args.samples, "summary": summary, "rows": rows},
                                               indent=1))
 

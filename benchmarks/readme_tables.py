@@ -203,9 +203,7 @@ def collection_rows(r: dict, runs: dict, dask: dict) -> list[str]:
 RETRIEVAL_LABELS = {"nearest profile": "one query at a time (`gromov search`), default pruning",
                     "nearest bound": "one query at a time, exact pruning (`prune=\"bound\"`)",
                     "nearest profile 0.4": "one query at a time, slack 0.4",
-                    "nearest profile 0.4": "one query at a time, slack 0.4",
                     "knn_pairs profile": "every shape at once (`gh_matrix(k=)`), default pruning",
-                    "knn_pairs profile 0.4": "every shape at once, slack 0.4",
                     "knn_pairs profile 0.4": "every shape at once, slack 0.4",
                     "knn_pairs bound": "every shape at once, exact pruning"}
 

@@ -30,7 +30,12 @@ try:
     import distributed
     from dask.sizeof import sizeof
     from distributed.active_memory_manager import ActiveMemoryManagerPolicy, Suggestion
-    from distributed.protocol.serialize import dask_deserialize, dask_serialize, pickle_dumps, pickle_loads
+    from distributed.protocol.serialize import (
+        dask_deserialize,
+        dask_serialize,
+        pickle_dumps,
+        pickle_loads,
+    )
 except ImportError as exc:   # tests/test_dask.py hides distributed
     raise ImportError("gromov's Dask support needs dask.distributed: pip install 'gromov[dask]'") from exc
 
