@@ -41,8 +41,8 @@ except ImportError as exc:   # tests/test_dask.py hides distributed
 
 from .gh import ShapeMetric
 
-__all__ = ["HomeReplicas", "client_for", "one_thread", "plan", "prepare_workers", "reuse_freed_memory", "run_pinned", "spread",
-           "worker_threads"]
+__all__ = ["LOCAL_CLUSTER_CONFIG", "HomeReplicas", "client_for", "one_thread", "plan", "prepare_workers",
+           "reuse_freed_memory", "run_pinned", "spread", "worker_threads"]
 
 #: Pairs submitted at a time per worker thread: one running, one whose shapes are on their way.
 IN_FLIGHT_PER_THREAD = 2
@@ -180,12 +180,14 @@ class HomeReplicas(ActiveMemoryManagerPolicy):
     tasks waiting for the key, and drops the others from the workers using the most memory:
     a worker's own shapes once another worker has received a copy, whenever none of the few
     pairs submitted to it at that moment reads them; it then receives them back for its next
-    pairs. On 14 TOSCA shapes and 2 workers, where :func:`plan` needs 11 shapes sent, 16-20 were
-    sent with that policy and 12-14 with this one (four runs each). Keys without a worker restriction are treated as
-    ``ReduceReplicas`` treats them. :func:`client_for` runs its ``LocalCluster`` with this
-    policy instead of ``ReduceReplicas``; a scheduler of your own takes it in its Dask
-    configuration (``distributed.scheduler.active-memory-manager.policies``), when it can
-    import gromov.
+    pairs. On 14 TOSCA shapes and 2 workers, where :func:`plan` needs 11 shapes sent, 16-25
+    were sent with that policy (six runs) and 12-14 with this one (four runs). A key without a
+    worker restriction keeps, as with ``ReduceReplicas``, a copy on each worker running or
+    queuing a task that reads it, and one spare copy while such tasks wait for a worker
+    (``ReduceReplicas`` keeps one per waiting task). :func:`client_for` runs its
+    ``LocalCluster`` with this policy instead of ``ReduceReplicas``; a scheduler of your own
+    takes it in its Dask configuration (``distributed.scheduler.active-memory-manager.policies``),
+    when it can import gromov.
     """
 
     def run(self):
