@@ -235,16 +235,14 @@ def dask_rows(files, jobs: int, rounds: int = 3) -> dict:
                     "throughput_ratio_total": t_jobs / t_dask,
                     "throughput_ratio_without_start": ((ref.seconds_prepare + ref.seconds_match)
                                                        / (got.seconds_prepare + got.seconds_match))})
-    mid = sorted(range(rounds), key=lambda i: out[i]["throughput_ratio_match"])[rounds // 2]
-    rows = {"shapes": n, "pairs": pairs, "workers": jobs, "rounds": out, "median_round": mid,
-            "jobs": out[mid]["jobs"], "dask": out[mid]["dask"], "identical": identical}
+    rows = {"shapes": n, "pairs": pairs, "workers": jobs, "rounds": out, "identical": identical}
     for key in ("throughput_ratio_match", "throughput_ratio_total", "throughput_ratio_without_start"):
         rows[key] = float(np.median([r[key] for r in out]))
     return rows
 
 
 def print_dask(d: dict) -> None:
-    for i, r in enumerate(d.get("rounds", [d])):
+    for i, r in enumerate(d["rounds"]):
         print(f"6 dask ({d['shapes']} shapes, {d['pairs']} pairs), round {i + 1}: --jobs {d['workers']} "
               f"{r['jobs']['seconds']:.1f} s (pairs {r['jobs']['match']:.1f} s), LocalCluster of {d['workers']} "
               f"{r['dask']['seconds']:.1f} s (start {r['dask']['cluster_start']:.1f} s, pairs "

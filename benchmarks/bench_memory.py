@@ -66,7 +66,10 @@ def watch(pid: int, every: float = 1.0) -> tuple[dict, list, threading.Thread]:
             trace.append([round(at, 1), round(pss), round(rss), len(procs)])
             if pss > peak["pss_mb"]:
                 peak.update(pss_mb=pss, rss_sum_mb=rss, rss_largest_mb=largest, processes=len(procs), at_s=at)
-            if not root.is_running() or root.status() == psutil.STATUS_ZOMBIE:
+            try:
+                if root.status() == psutil.STATUS_ZOMBIE:
+                    return
+            except psutil.Error:   # gone
                 return
             time.sleep(every)
 
@@ -107,7 +110,7 @@ def main(argv=None) -> int:
     row = {"shapes": len(files), "pairs": len(files) * (len(files) - 1) // 2, "jobs": args.jobs,
            "seconds": seconds, "peak": peak, "machine_memory_gb": psutil.virtual_memory().total / 1e9,
            "model_distances_gb": len(files) * 8 * 3000 ** 2 / 1e9, "run": " ".join(shown),
-           "shapes_in_matrix": len(got.get("files", got.get("names", files)))}
+           "shapes_in_matrix": len(got["files"])}
     print(f"{len(files)} shapes, {row['pairs']} pairs, --jobs {args.jobs}: {seconds / 60:.1f} min; peak PSS "
           f"{peak['pss_mb'] / 1e3:.2f} GB over {peak['processes']} processes (summed RSS "
           f"{peak['rss_sum_mb'] / 1e3:.2f} GB, largest process {peak['rss_largest_mb'] / 1e3:.2f} GB) at "

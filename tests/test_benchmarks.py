@@ -282,8 +282,8 @@ def test_benchmark_page_tables_are_the_results_files():
     assert re["complete"] and re["shapes"] == 80
     assert f"same matrices: {'yes' if re['kill']['identical'] else 'no'};" in resume
     da = _json("collection_dask.json")["dask"]
-    ratios = sorted(x["throughput_ratio_match"] for x in da["rounds"])
-    assert f"| median | | | {ratios[len(ratios) // 2]:.2f}× |" in dask
+    median = float(np.median([x["throughput_ratio_match"] for x in da["rounds"]]))
+    assert f"| median | | | {median:.2f}× |" in dask and len(da["rounds"]) >= 3
 
 
 def test_cloud_sampling_benchmark_compares_like_with_like():
