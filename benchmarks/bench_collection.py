@@ -2,7 +2,8 @@
 
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_collection.py [--data DIR] [--classes cat,wolf,...]
           [--jobs 2] [--store DIR] [--json benchmarks/results/collection.json]
-          [--skip rematch,kill,retrieval,dask] [--dask-classes centaur,horse] [--only dask]
+          [--skip rematch,kill,retrieval,dask] [--dask-classes centaur,horse] [--only dask|retrieval]
+          [--retrieval-store DIR]
 
 The shapes are TOSCA's (:class:`gromov.experiments.datasets.TOSCA`: 80 shapes of 9 classes;
 ``--classes`` a subset), matched with the defaults of ``gromov pairwise`` (diffusion metric, heat
@@ -20,12 +21,16 @@ fresh folders under ``--store``.
    scaled) of (1), by the classes of the file names, as ``gromov pairwise`` reports them.
 5. retrieval: every shape as the query of :func:`gromov.retrieval.nearest` over the others, and
    every shape's k nearest at once (:func:`gromov.retrieval.knn_pairs`), with the default pruning
-   (``prune="profile"``, and with slack 0.4) and the exact one (``prune="bound"``), against brute force on (1)'s
+   (``prune="profile"``: the profile gap and the triangle estimates), without the triangle
+   estimates, with slack 0.4, and the exact one (``prune="bound"``), against brute force on (1)'s
    trimmed matrix (ties to the lower index): recall@k, the queries whose k nearest are brute
-   force's in order, and the full matches against all pairs. The bounds come from the shapes
-   read from S1; a full match is replaced by the value (1) found for the pair (the same match,
-   same options: ``knn_pairs``'s ``run`` and, for ``nearest``, its ``_match``), so no pair is
-   matched again.
+   force's in order, and the full matches against all pairs. A query knows the values between
+   the other shapes that its store would hold: all (after ``gromov pairwise``), those
+   ``knn_pairs`` matched (after ``gh_matrix(k=...)``), or none; never its own. The bounds come
+   from the shapes read from S1; a full match is replaced by the value (1) found for the pair
+   (the same match, same options: ``knn_pairs``'s ``run`` and, for ``nearest``, its
+   ``_match``), so no pair is matched again. ``--only retrieval`` runs ``gromov pairwise`` on
+   ``--retrieval-store DIR`` (reading back what it holds) and then this part alone.
 6. dask: on ``--dask-classes`` (default centaur and horse, 14 shapes), what
    ``gromov pairwise --dask 2`` runs -- a ``LocalCluster`` of 2 one-thread workers
    (:func:`gromov._dask.client_for`) and :func:`gromov.experiments.gh_matrix` with ``client`` --
@@ -153,7 +158,13 @@ def brute(T: np.ndarray, k: int) -> list[list[int]]:
 
 def retrieval_rows(shapes, D, R, T, k: int) -> dict:
     """recall@k, exact queries and full matches of ``nearest`` (per query) and ``knn_pairs``
-    (all at once), with each pruning, the values looked up in (1)'s matrices."""
+    (all at once), with each pruning, the values looked up in (1)'s matrices.
+
+    ``nearest`` with the default pruning is run three times, as the store it searches would
+    give it the values between the other shapes (its triangle estimates' pivots): all of them
+    (a store after ``gromov pairwise``), those ``knn_pairs`` matched with the default pruning (a
+    store after ``gh_matrix(k=...)``), and none (a store after ``gromov index`` only). The
+    query's own pairs are never known to it."""
     n = len(shapes)
     k = min(k, n - 1)
     truth = brute(T, k)
@@ -173,15 +184,40 @@ def retrieval_rows(shapes, D, R, T, k: int) -> dict:
         return [(D[i, j], R[i, j], T[i, j]) for i, j in take]
 
     out = {}
-    for prune, slack, name in (("profile", retrieval.PROFILE_SLACK, "profile"), ("profile", LARGER_SLACK,
-                                                                               f"profile {LARGER_SLACK:g}"),
-                               ("bound", retrieval.PROFILE_SLACK, "bound")):
+    default_t = retrieval.TRIANGLE_SLACK
+    knn_all = [(prune, slack, t, name) for prune, slack, t, name in (
+        ("profile", retrieval.PROFILE_SLACK, default_t, "profile"),
+        ("profile", retrieval.PROFILE_SLACK, 0, "profile, no triangle"),
+        ("profile", LARGER_SLACK, 0, f"profile {LARGER_SLACK:g}"),
+        ("bound", retrieval.PROFILE_SLACK, 0, "bound"))]
+    matched_by_knn = set()
+    for prune, slack, t, name in knn_all:
+        ran.clear()
+        r = retrieval.knn_pairs(shapes, k, run, prune=prune, slack=slack, triangle_slack=t)
+        got = [r.neighbors[i].tolist() for i in range(n)]
+        out[f"knn_pairs {name}"] = {
+            "recall": float(np.mean([len(set(got[i]) & set(truth[i])) / k for i in range(n)])),
+            "exact_queries": int(sum(got[i] == truth[i] for i in range(n))), "queries": n,
+            "full_matches": int(r.full_matches), "pairs": n * (n - 1) // 2}
+        assert r.full_matches == len(ran)
+        if name == "profile":
+            matched_by_knn = set(r.results)
+    everything = {(i, j) for i in range(n) for j in range(i + 1, n)}
+    for prune, slack, t, known, name in (
+            ("profile", retrieval.PROFILE_SLACK, default_t, everything, "profile"),
+            ("profile", retrieval.PROFILE_SLACK, default_t, matched_by_knn, "profile, k nearest known"),
+            ("profile", retrieval.PROFILE_SLACK, default_t, set(), "profile, none known"),
+            ("profile", LARGER_SLACK, 0, set(), f"profile {LARGER_SLACK:g}"),
+            ("bound", retrieval.PROFILE_SLACK, 0, set(), "bound")):
         found, exact, full = [], 0, 0
         looked.clear()
         with mock.patch.object(retrieval, "_match", looked_up):
             for q in range(n):
                 others = [j for j in range(n) if j != q]
-                r = retrieval.nearest(shapes[q], [shapes[j] for j in others], k, prune=prune, slack=slack)
+                pos = {j: c for c, j in enumerate(others)}
+                kn = {(pos[i], pos[j]): T[i, j] for i, j in known if q not in (i, j)}
+                r = retrieval.nearest(shapes[q], [shapes[j] for j in others], k, prune=prune, slack=slack,
+                                      triangle_slack=t, known=kn)
                 got = [others[nb.index] for nb in r.neighbors]
                 found.append(len(set(got) & set(truth[q])) / k)
                 exact += got == truth[q]
@@ -189,14 +225,6 @@ def retrieval_rows(shapes, D, R, T, k: int) -> dict:
         assert full == len(looked)
         out[f"nearest {name}"] = {"recall": float(np.mean(found)), "exact_queries": int(exact), "queries": n,
                                    "full_matches": int(full), "pairs": n * (n - 1)}
-        ran.clear()
-        r = retrieval.knn_pairs(shapes, k, run, prune=prune, slack=slack)
-        got = [r.neighbors[i].tolist() for i in range(n)]
-        out[f"knn_pairs {name}"] = {
-            "recall": float(np.mean([len(set(got[i]) & set(truth[i])) / k for i in range(n)])),
-            "exact_queries": int(sum(got[i] == truth[i] for i in range(n))), "queries": n,
-            "full_matches": int(r.full_matches), "pairs": n * (n - 1) // 2}
-        assert r.full_matches == len(ran)
     for row in out.values():
         row["fewer"] = row["pairs"] / max(row["full_matches"], 1)
     return out
@@ -254,6 +282,24 @@ def print_dask(d: dict) -> None:
 
 
 # ----------------------------------------------------------------------------- main
+def retrieval_part(s1: Path, files, ref: dict, n: int) -> dict:
+    """Part 5 on the shapes of store ``s1`` and the matrices ``ref`` of a pairwise run on it."""
+    st = ShapeStore(s1)
+    shapes = st.shapes([str(f) for f in files], "diffusion", rank_tau_scale=RANK_TAU_SCALE)
+    t = time.perf_counter()
+    rows = retrieval_rows(shapes, ref["distance"], ref["relative_distance"], ref["relative_trimmed_distance"], K)
+    part = {"k": min(K, n - 1), "metrics_computed": st.computed, "seconds": time.perf_counter() - t,
+            "triangle_slack": retrieval.TRIANGLE_SLACK, "slack": retrieval.PROFILE_SLACK, "rows": rows}
+    st.close()
+    del shapes, st
+    gc.collect()
+    print(f"5 retrieval, k = {part['k']} (metrics computed for it: {part['metrics_computed']}):")
+    for name, row in rows.items():
+        print(f"    {name:<36} recall {row['recall']:.3f}, {row['exact_queries']}/{row['queries']} as brute "
+              f"force, {row['full_matches']}/{row['pairs']} full matches ({row['fewer']:.1f}x fewer)")
+    return part
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
@@ -267,9 +313,13 @@ def main(argv=None) -> None:
     ap.add_argument("--dask-classes", default="centaur,horse", help="the classes of the Dask comparison")
     ap.add_argument("--dask-rounds", type=int, default=3,
                     help="rounds of the Dask comparison, each --jobs then Dask (default 3; medians reported)")
-    ap.add_argument("--only", choices=("dask",), default=None,
+    ap.add_argument("--only", choices=("dask", "retrieval"), default=None,
                     help="run only this part, with its own results file (e.g. --only dask --dask-classes "
-                         "centaur,horse,david,gorilla --json benchmarks/results/collection_dask.json)")
+                         "centaur,horse,david,gorilla --json benchmarks/results/collection_dask.json; "
+                         "--only retrieval --json benchmarks/results/collection_retrieval.json)")
+    ap.add_argument("--retrieval-store", default=None, metavar="DIR",
+                    help="--only retrieval: the store gromov pairwise fills (or reads back, where it "
+                         "holds the shapes and pairs already); default a fresh one under --store")
     args = ap.parse_args(argv)
     skip = {s for s in args.skip.split(",") if s}
     if skip - set(PARTS):
@@ -296,6 +346,19 @@ def main(argv=None) -> None:
     files = files_of(classes)
     n = len(files)
     P = n * (n - 1) // 2
+    if args.only == "retrieval":
+        with tempfile.TemporaryDirectory(prefix="collection-retrieval-", dir=args.store) as tmp:
+            s1 = Path(args.retrieval_store or Path(tmp) / "store")
+            wall, out, _, _ = run_cli(pairwise_cmd(files, s1, Path(tmp) / "matrix.npz", args.jobs),
+                                      Path(tmp) / "stderr.log", store=s1)
+            ref = matrices(Path(tmp) / "matrix.npz")
+            res = {"command": "python benchmarks/bench_collection.py " + shlex.join(
+                       argv if argv is not None else sys.argv[1:]), "shapes": n, "pairs": P, "classes": classes,
+                   "pairwise": {"seconds": wall, "shapes_read": out["store"]["shapes_read"],
+                                "pairs_read": out["store"]["pairs_read"]},
+                   "retrieval": retrieval_part(s1, files, ref, n)}
+        write_results(args.json, {**res, "complete": True})
+        return
     if args.store is None:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         root, keep = Path(tempfile.mkdtemp(prefix="collection-stores-", dir=Path(args.json).parent)), False
@@ -351,21 +414,7 @@ def main(argv=None) -> None:
         save()
         # 5. retrieval
         if "retrieval" not in skip:
-            st = ShapeStore(s1)
-            shapes = st.shapes([str(f) for f in files], "diffusion", rank_tau_scale=RANK_TAU_SCALE)
-            t = time.perf_counter()
-            rows = retrieval_rows(shapes, ref["distance"], ref["relative_distance"],
-                                  ref["relative_trimmed_distance"], K)
-            res["retrieval"] = {"k": min(K, n - 1), "metrics_computed": st.computed,
-                                "seconds": time.perf_counter() - t, "rows": rows}
-            st.close()
-            del shapes, st
-            gc.collect()
-            print(f"5 retrieval, k = {res['retrieval']['k']} (metrics computed for it: "
-                  f"{res['retrieval']['metrics_computed']}):")
-            for name, row in rows.items():
-                print(f"    {name:<18} recall {row['recall']:.3f}, {row['exact_queries']}/{row['queries']} as brute "
-                      f"force, {row['full_matches']}/{row['pairs']} full matches ({row['fewer']:.1f}x fewer)")
+            res["retrieval"] = retrieval_part(s1, files, ref, n)
         save()
         if not keep:
             shutil.rmtree(s1)

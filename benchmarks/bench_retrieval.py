@@ -12,8 +12,10 @@ run reads them). Then, for every shape as the query and the others as the collec
 search of :func:`gromov.retrieval.nearest` is replayed on the recorded values
 (it matches a pair only when its bound allows, so the values decide which pairs it would match),
 for k = 1, 3, 5, with the lower bound alone (``prune="bound"``, exact) and with the profile gap
-at several slacks (``prune="profile"``): recall@k against brute force (the fraction of the true
-k nearest found, averaged over the queries) and the fraction of the pairs skipped. The same for
+at several slacks (``prune="profile"``, the triangle estimates off), and at the default slack with the triangle
+estimates at several ``triangle_slack`` (a search knowing the values between the other shapes,
+as a store does after ``gromov pairwise``): recall@k against brute force (the fraction of the
+true k nearest found, averaged over the queries) and the fraction of the pairs skipped. The same for
 every shape's k nearest at once (:func:`gromov.retrieval.knn_pairs`, ``gh_matrix(k=...)``).
 Ranked by the trimmed distortion (the default) and by the GH estimate (``rank_by="gh"``).
 """
@@ -28,13 +30,14 @@ import numpy as np
 from _common import add_data_argument
 
 from gromov.experiments.pairwise import gh_matrix
-from gromov.retrieval import _schedule, knn_pairs, pair_bound, profile_gap, shape_bound
+from gromov.retrieval import PROFILE_SLACK, _schedule, _Triangle, knn_pairs, pair_bound, profile_gap, shape_bound
 from gromov.store import ShapeStore
 
 SHAPES = ([f"wolf{i}" for i in range(3)] + [f"horse{i}" for i in (0, 5, 6, 7, 10)]
           + [f"centaur{i}" for i in range(4)] + [f"michael{i}" for i in range(4)]
           + [f"gorilla{i}" for i in (1, 5, 8, 14)])
 SLACKS = (0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.75, 1.0)
+TRIANGLE_SLACKS = (0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.2)
 KS = (1, 3, 5)
 
 
@@ -59,8 +62,9 @@ def brute(values: np.ndarray, k: int) -> list[set]:
     return [{j for _, j in sorted((values[i, j], j) for j in range(n) if j != i)[:k]} for i in range(n)]
 
 
-def replay_queries(V, B, G, k, prune, slack):
-    """recall@k and fraction skipped of a search from every shape over the others."""
+def replay_queries(V, B, G, k, prune, slack, triangle_slack=None):
+    """recall@k and fraction skipped of a search from every shape over the others; with
+    ``triangle_slack``, the values between the others known (a store after ``gromov pairwise``)."""
     n = len(V)
     truth = brute(V, k)
     found, skipped = [], 0
@@ -71,18 +75,26 @@ def replay_queries(V, B, G, k, prune, slack):
         gap = np.array([G[q, j] for j in others])
         if prune == "profile":
             key = np.maximum(key, slack * gap)
+        triangle = None
+        if prune == "profile" and triangle_slack:
+            triangle = _Triangle(triangle_slack)
+            for a in others:
+                for b in others:
+                    if a < b:
+                        triangle.add(a, b, V[a, b])
         _, rows, _, n_skip = _schedule(pairs, lambda ij: [(0, ij[1])], key, gap, k, 1,
-                                       lambda take, q=q: [V[q, j] for _, j in take], known={})
+                                       lambda take, q=q: [V[q, j] for _, j in take], known={},
+                                       triangle=triangle, nodes=lambda ij, q=q: (q, ij[1]))
         found.append(len({j for _, j in rows.best[0]} & truth[q]) / k)
         skipped += n_skip
     return float(np.mean(found)), skipped / (n * (n - 1))
 
 
-def replay_all(shapes, V, k, rank_by, prune, slack):
+def replay_all(shapes, V, k, rank_by, prune, slack, triangle_slack=None):
     n = len(V)
     # knn_pairs reads the ranked value at 2 (trimmed) or 1 (gh) of what run returns
     out = knn_pairs(shapes, k, lambda take: [(None, V[i, j], V[i, j]) for i, j in take],
-                    rank_by=rank_by, prune=prune, slack=slack)
+                    rank_by=rank_by, prune=prune, slack=slack, triangle_slack=triangle_slack)
     truth = brute(V, k)
     recall = np.mean([len(set(out.neighbors[i].tolist()) & truth[i]) / k for i in range(n)])
     return float(recall), out.skipped / (n * (n - 1) // 2)
@@ -118,13 +130,13 @@ def main() -> None:
                 "gap_over_value": [float(q) for q in np.quantile(G[off] / V[off], [0.0, 0.05, 0.5, 0.95, 1.0])],
                 "search": {}, "all": {}}
         for k in KS:
-            for prune, slacks in (("bound", (1.0,)), ("profile", SLACKS)):
-                for s in slacks:
-                    name = prune if prune == "bound" else f"profile {s:g}"
-                    recall, skip = replay_queries(V, B, G, k, prune, s)
-                    rows["search"][f"k={k} {name}"] = {"recall": recall, "skipped": skip}
-                    recall, skip = replay_all(shapes, V, k, rank_by, prune, s)
-                    rows["all"][f"k={k} {name}"] = {"recall": recall, "skipped": skip}
+            runs = [("bound", 1.0, None, "bound")] + [("profile", s, None, f"profile {s:g}") for s in SLACKS]
+            runs += [("profile", PROFILE_SLACK, t, f"profile {PROFILE_SLACK:g} triangle {t:g}") for t in TRIANGLE_SLACKS]
+            for prune, s, t, name in runs:
+                recall, skip = replay_queries(V, B, G, k, prune, s, t)
+                rows["search"][f"k={k} {name}"] = {"recall": recall, "skipped": skip}
+                recall, skip = replay_all(shapes, V, k, rank_by, prune, s, t)
+                rows["all"][f"k={k} {name}"] = {"recall": recall, "skipped": skip}
         out["rankings"][rank_by] = rows
         print(f"ranked by {rank_by}: bound > 0 on {rows['bound_positive']:.1%} of the pairs; profile gap / "
               f"value quantiles 0/5/50/95/100%: {', '.join(f'{q:.2f}' for q in rows['gap_over_value'])}")

@@ -167,7 +167,8 @@ def anchors_table() -> str:
         f"| farthest point sampling, {big['points']:,} points → {big['samples']:,} | "
         f"{_secs(big['ours_s'])} | {_secs(big['fpsample_vanilla_s'])} / "
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
-        *collection_rows(load("collection.json"), load("collection_resume.json"), load("collection_dask.json")),
+        *collection_rows(load("collection_retrieval.json"), load("collection_resume.json"),
+                         load("collection_dask.json")),
     ]
     return "\n".join(rows)
 
@@ -193,19 +194,25 @@ def collection_rows(r: dict, runs: dict, dask: dict) -> list[str]:
         f"| the pairs of {d['shapes']} shapes on a Dask cluster of 2 workers: throughput (pairs alone; whole run), "
         f"median of {len(d['rounds'])} rounds | {d['throughput_ratio_match']:.2f}; {d['throughput_ratio_total']:.2f} "
         f"| 1 (`--jobs 2`, processes) |",
-        f"| the {r['retrieval']['k']} nearest of each of {r['shapes']} shapes: full matches (recall) | "
+        f"| the {r['retrieval']['k']} nearest of each of {r['shapes']} shapes: full matches (recall), all at once; "
+        f"one query at a time (`gromov search`, a store `gromov pairwise` filled) | "
         f"{ret['knn_pairs bound']['full_matches']:,} exact ({ret['knn_pairs bound']['recall']:.3f}); "
-        f"{ret['knn_pairs profile']['full_matches']:,} default ({ret['knn_pairs profile']['recall']:.3f}) | "
-        f"{r['pairs']:,} (all pairs) |",
+        f"{ret['knn_pairs profile']['full_matches']:,} default ({ret['knn_pairs profile']['recall']:.3f}); "
+        f"{ret['nearest profile']['full_matches']:,} of {ret['nearest profile']['pairs']:,} "
+        f"({ret['nearest profile']['recall']:.3f}) | {r['pairs']:,} (all pairs); {ret['nearest profile']['pairs']:,} |",
     ]
 
 
-RETRIEVAL_LABELS = {"nearest profile": "one query at a time (`gromov search`), default pruning",
-                    "nearest bound": "one query at a time, exact pruning (`prune=\"bound\"`)",
-                    "nearest profile 0.4": "one query at a time, slack 0.4",
-                    "knn_pairs profile": "every shape at once (`gh_matrix(k=)`), default pruning",
-                    "knn_pairs profile 0.4": "every shape at once, slack 0.4",
-                    "knn_pairs bound": "every shape at once, exact pruning"}
+RETRIEVAL_LABELS = {
+    "knn_pairs profile": "every shape at once (`gh_matrix(k=)`), default pruning",
+    "knn_pairs profile, no triangle": "every shape at once, without the triangle estimates",
+    "knn_pairs profile 0.4": "every shape at once, slack 0.4, without the triangle estimates",
+    "knn_pairs bound": "every shape at once, exact pruning (`prune=\"bound\"`)",
+    "nearest profile": "one query at a time (`gromov search`), default pruning, a store `gromov pairwise` filled",
+    "nearest profile, k nearest known": "one query at a time, a store holding the pairs `gh_matrix(k=5)` matched",
+    "nearest profile, none known": "one query at a time, a store only indexed (no triangle estimates)",
+    "nearest profile 0.4": "one query at a time, slack 0.4, a store only indexed",
+    "nearest bound": "one query at a time, exact pruning"}
 
 
 def collection_runs(r: dict) -> str:
@@ -229,10 +236,9 @@ def collection_runs(r: dict) -> str:
     return "\n".join(rows)
 
 
-def collection_table(r: dict) -> str:
-    """bench_collection.py: the runs, recognition and retrieval rows."""
-    rows = [collection_runs(r), "",
-            f"| the {r['retrieval']['k']} nearest | recall | queries as brute force | full matches | fewer |",
+def retrieval_table(r: dict) -> str:
+    """bench_collection.py --only retrieval: the retrieval rows."""
+    rows = [f"| the {r['retrieval']['k']} nearest | recall | queries as brute force | full matches | fewer |",
             "|---|---:|---:|---:|---:|"]
     for name, row in r["retrieval"]["rows"].items():
         rows.append(f"| {RETRIEVAL_LABELS.get(name, name)} | {row['recall']:.3f} | {row['exact_queries']}/{row['queries']} | "
@@ -401,7 +407,8 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
             ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
             ("speed.json", speed_table(load("speed.json"))),
-            ("collection.json", collection_table(load("collection.json"))),
+            ("collection.json", collection_runs(load("collection.json"))),
+            ("collection_retrieval.json", retrieval_table(load("collection_retrieval.json"))),
             ("collection_resume.json", collection_runs(load("collection_resume.json"))),
             ("collection_dask.json", dask_table(load("collection_dask.json")))]
 

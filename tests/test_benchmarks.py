@@ -248,11 +248,11 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 12
+    assert len(tables) == 13
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
-    foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed, collection, resume, dask = (
-        t for _, t in tables)
+    (foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed, collection, retrieval, resume,
+     dask) = (t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
     d = _json("foundation.json")["diffusion"]
@@ -276,8 +276,11 @@ def test_benchmark_page_tables_are_the_results_files():
     assert co["complete"] and co["shapes"] == 80 and co["pairs"] == 80 * 79 // 2
     assert f"| {co['scratch']['seconds']:.0f} | 1.00 |" in collection
     assert f"same matrices: {'yes' if co['kill']['identical'] else 'no'};" in collection
-    row = co["retrieval"]["rows"]["knn_pairs bound"]
-    assert f"| {row['full_matches']:,}/{row['pairs']:,} |" in collection
+    ret = _json("collection_retrieval.json")
+    assert ret["complete"] and ret["shapes"] == 80 and ret["pairs"] == 80 * 79 // 2
+    for name in ("knn_pairs bound", "knn_pairs profile", "nearest profile", "nearest profile, none known"):
+        row = ret["retrieval"]["rows"][name]
+        assert f"| {row['recall']:.3f} | {row['exact_queries']}/80 | {row['full_matches']:,}/{row['pairs']:,} |" in retrieval
     re = _json("collection_resume.json")
     assert re["complete"] and re["shapes"] == 80
     assert f"same matrices: {'yes' if re['kill']['identical'] else 'no'};" in resume

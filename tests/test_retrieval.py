@@ -321,6 +321,7 @@ def test_cli_slack_default_is_the_library_default():
 
     args = build_parser().parse_args(["search", "q.off", "--store", "s"])
     assert args.slack == retrieval.PROFILE_SLACK and args.prune == "profile" and args.k == 5
+    assert args.triangle_slack == retrieval.TRIANGLE_SLACK
 
 
 def test_store_extra_arrays_round_trip(tmp_path):
@@ -330,3 +331,81 @@ def test_store_extra_arrays_round_trip(tmp_path):
     store.put_extra("key", "name", {"a": np.arange(4.0)})   # replaced
     got = ShapeStore(tmp_path).extra("key", "name")
     assert set(got) == {"a"} and got["a"].tolist() == [0.0, 1.0, 2.0, 3.0]
+
+
+def test_triangle_estimates_are_the_largest_differences_through_known_pairs():
+    """Points on a line: |d(a, m) - d(m, b)| is d(a, b) for m outside [a, b], less inside."""
+    x = {"a": 0.0, "b": 1.0, "m": 3.0, "c": 0.5}
+    t = retrieval._Triangle(0.5)
+    assert t.estimate("a", "b") == 0.0   # nothing known
+    t.add("a", "m", 3.0)
+    t.add("b", "m", 2.0)   # a - m - b: |3 - 2| = d(a, b)
+    assert t.estimate("a", "b") == 0.5 * abs(x["a"] - x["b"])
+    t.add("c", "a", 0.5)   # pivots a (for c - m) and, later, m (for c - b)
+    assert t.estimate("c", "m") == 0.5 * abs(0.5 - 3.0)
+    t.add("c", "m", 2.5)
+    assert t.estimate("b", "c") == 0.5 * abs(2.5 - 2.0) == 0.5 * abs(x["b"] - x["c"])
+    t.add("a", "b", float("nan"))   # a NaN value tells nothing
+    assert t.estimate("a", "b") == 0.5
+
+
+def test_the_schedule_with_triangle_estimates_equals_brute_force_on_a_metric():
+    """Where the values are a metric, the triangle estimate with slack 1 is a lower bound: every
+    row's k nearest are brute force's; clustered points let it skip pairs."""
+    rng = np.random.default_rng(3)
+    skipped = 0
+    for trial in range(20):
+        n = int(rng.integers(6, 16))
+        centres = rng.normal(size=(3, 2)) * 10
+        pts = centres[rng.integers(0, 3, n)] + rng.normal(size=(n, 2))
+        v = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+        k = int(rng.integers(1, 4))
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        _, rows, n_run, n_skip = retrieval._schedule(
+            pairs, lambda ij: [(ij[0], ij[1]), (ij[1], ij[0])], np.zeros(len(pairs)), np.zeros(len(pairs)), k, n,
+            lambda take, v=v: [v[i, j] for i, j in take], known={}, batch=int(rng.integers(1, 3)),
+            triangle=retrieval._Triangle(1.0), nodes=lambda ij: ij)
+        assert [[j for _, j in r] for r in rows.best] == _brute(v, k)
+        assert n_run + n_skip == len(pairs)
+        skipped += n_skip
+        # one query at a time, the values between the others known
+        q, others = 0, list(range(1, n))
+        tri = retrieval._Triangle(1.0)
+        for a in others:
+            for b in others:
+                if a < b:
+                    tri.add(a, b, v[a, b])
+        _, rows, n_run, n_skip = retrieval._schedule(
+            [(0, j) for j in others], lambda ij: [(0, ij[1])], np.zeros(n - 1), np.zeros(n - 1), k, 1,
+            lambda take, v=v: [v[0, j] for _, j in take], known={}, triangle=tri, nodes=lambda ij: (q, ij[1]))
+        assert [j for _, j in rows.best[0]] == _brute(v, k)[0]
+        skipped += n_skip
+    assert skipped > 100
+
+
+def test_nearest_reads_the_pairs_recorded_between_candidates(tmp_path, shape_files):
+    """A store that holds the candidates' pairs (gh_matrix with it) gives the triangle estimates
+    their pivots; the query's own recorded pairs are not read: it is matched."""
+    files = list(shape_files.values())
+    store = ShapeStore(tmp_path / "s")
+    g = gh_matrix(files, "geodesic", n_samples=N, resolution=None, store=store)
+    kw = {"n_samples": N, "resolution": None}
+    q = shape_files["small"]   # a small sphere: the strips are ruled out through the spheres
+    rest = [f for f in files if f != q]
+    opts = retrieval._options(N, 0, retrieval.RANK_TAU_SCALE, retrieval.RANK_RESIDUAL, {}, "test")
+    cands, _, recorded = retrieval._candidates(q, store, "geodesic",
+                                               {"resolution": None, "metric_options": None}, N, 0,
+                                               retrieval.RANK_TAU_SCALE)
+    got = recorded(opts)
+    at = [files.index(c.name) for c in cands]
+    assert len(got) == len(rest) * (len(rest) - 1) // 2   # every pair between candidates, none with the query
+    for (i, j), v in got.items():
+        assert v[2] == g.trimmed[at[i], at[j]]
+    with_tri = nearest(q, store, 1, "geodesic", triangle_slack=1.0, **kw)
+    without = nearest(q, store, 1, "geodesic", triangle_slack=0, **kw)
+    assert 1 <= with_tri.full_matches < without.full_matches
+    assert with_tri.neighbors[0].name == without.neighbors[0].name
+    with pytest.raises(ValueError, match="known"):
+        nearest(shape_files["sphere"], [shape_files["ellipsoid"]], 1, "geodesic", known={(0, 3): 1.0}, **kw)
+    with pytest.raises(ValueError, match="triangle_slack"):
+        nearest(shape_files["sphere"], [shape_files["ellipsoid"]], 1, "geodesic", triangle_slack=-1, **kw)

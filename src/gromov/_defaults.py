@@ -7,7 +7,7 @@ without loading numba, scipy or the compiled kernels. Each is documented where i
 (``GZIP_RATIO``, ``GZIP_FLOOR``), :mod:`gromov.metrics` (``DIFFUSION_FILL_HOLES``),
 :mod:`gromov.metrics.diffusion` (``HEAT_UNITS``, ``DEFAULT_UNITS``),
 :mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``) and :mod:`gromov.retrieval`
-(``PROFILE_SLACK``).
+(``PROFILE_SLACK``, ``TRIANGLE_SLACK``).
 """
 
 DEFAULT_RESOLUTION = 3000
@@ -22,3 +22,4 @@ HEAT_UNITS = ("normalized", "raw", "length")
 DEFAULT_UNITS = "raw"
 LOCAL_SCALING_K = 4
 PROFILE_SLACK = 0.3
+TRIANGLE_SLACK = 0.7

@@ -23,7 +23,7 @@ from ._atomic import atomic_path, atomic_savez_compressed
 from ._json import finite as _finite
 from ._defaults import (DEFAULT_RESOLUTION, DEFAULT_UNITS, DIFFUSION_FILL_HOLES, GZIP_FLOOR, GZIP_RATIO,
                         HEAT_UNITS, LOCAL_SCALING_K, PROFILE_SLACK, RANK_RESIDUAL, RANK_RESIDUALS,
-                        RANK_TAU_SCALE, WELD_JOINS)
+                        RANK_TAU_SCALE, TRIANGLE_SLACK, WELD_JOINS)
 from .errors import GromovError
 
 __all__ = ["main"]
@@ -637,7 +637,8 @@ def cmd_search(args) -> int:
         r = nearest(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
                     resolution=args.resolution, metric_options=options, rank_by=args.rank_by,
                     rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual, prune=args.prune,
-                    slack=args.slack, progress=not (args.quiet or args.json))
+                    slack=args.slack, triangle_slack=args.triangle_slack,
+                    progress=not (args.quiet or args.json))
     finally:
         _close_store(store, handler)
     seconds = time.perf_counter() - t
@@ -1159,6 +1160,16 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _nonnegative_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
+    if not 0 <= v < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {v}")
+    return v
+
+
 def _search_parser(sub) -> None:
     q = sub.add_parser("search", help="the shapes of a shape store nearest to a query, skipping the "
                                       "pairs a per-shape bound rules out")
@@ -1186,6 +1197,11 @@ def _search_parser(sub) -> None:
     q.add_argument("--slack", type=_positive_float, default=PROFILE_SLACK, metavar="S",
                    help="--prune profile: skip a shape when S times its profile gap exceeds the "
                         f"k-th distance found (default {PROFILE_SLACK:g}; larger skips more)")
+    q.add_argument("--triangle-slack", type=_nonnegative_float, default=TRIANGLE_SLACK, metavar="T",
+                   help="--prune profile: skip a shape also when T times |d(query, m) - d(m, shape)| "
+                        "exceeds the k-th distance found, for the shapes m matched so far whose "
+                        "distance to it the store has recorded (by pairwise or index runs; default "
+                        f"{TRIANGLE_SLACK:g}; 0: off)")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)

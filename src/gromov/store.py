@@ -625,6 +625,16 @@ class ShapeStore:
                 out[k] = tuple(_float(x) for x in v)
         return out
 
+    def pair_values_among(self, keys, options: dict) -> dict:
+        """``{(x, y): (distance, relative_distance, ranking_distance)}`` of the recorded pairs
+        between the entries ``keys`` (each pair as it was recorded: X, Y) matched with
+        ``options`` (:func:`match_options_key`) by this gromov version."""
+        keys = set(keys)
+        rows = self._db().execute("SELECT x, y, distance, relative_distance, ranking_distance FROM pairs "
+                                  "WHERE options = ? AND version = ?", (_dumps(options), _version()))
+        return {(x, y): tuple(_float(v) for v in vals) for x, y, *vals in rows
+                if x in keys and y in keys}
+
     def record_pair(self, key: str, x: str, y: str, options: dict, result) -> None:
         """Record a :class:`gromov.MatchResult` under ``key`` (kept if already there)."""
         blob = _npz_bytes({k: np.asarray(getattr(result, k)) for k in PAIR_ARRAYS})
