@@ -409,3 +409,33 @@ def test_nearest_reads_the_pairs_recorded_between_candidates(tmp_path, shape_fil
         nearest(shape_files["sphere"], [shape_files["ellipsoid"]], 1, "geodesic", known={(0, 3): 1.0}, **kw)
     with pytest.raises(ValueError, match="triangle_slack"):
         nearest(shape_files["sphere"], [shape_files["ellipsoid"]], 1, "geodesic", triangle_slack=-1, **kw)
+
+
+def test_cli_pairwise_k_matches_only_the_nearest_pairs(tmp_path, shape_files, capsys):
+    """``gromov pairwise -k 1``: every shape's nearest as all pairs give it, the pairs not matched
+    empty (null in the JSON) and not recorded in the store, which a search then reads."""
+    files = list(shape_files.values())
+    opts = ["--metric", "geodesic", "--resolution", "400", "--samples", str(N), "--json"]
+    assert main(["pairwise", *files, *opts]) == 0
+    full = json.loads(capsys.readouterr().out)
+    store = str(tmp_path / "s")
+    labels = ["round", "round", "round", "strip", "strip"]   # sphere, ellipsoid, small, strip, rolled
+    assert main(["pairwise", *files, *opts, "-k", "1", "--store", store, "--labels", ",".join(labels)]) == 0
+    part = json.loads(capsys.readouterr().out)
+    assert part["nearest"] == full["nearest"] and part["k"] == 1
+    assert part["pairs_matched"] + part["pairs_skipped"] == 10 and part["pairs_skipped"] >= 1
+    t = np.array(part["relative_trimmed_distance"], dtype=float)   # null -> nan
+    matched = ~np.isnan(t[np.triu_indices(5, 1)])
+    assert int(matched.sum()) == part["pairs_matched"]
+    np.testing.assert_array_equal(t[~np.isnan(t)], np.array(full["relative_trimmed_distance"])[~np.isnan(t)])
+    assert part["eer"] is None and part["nn_accuracy"] == 1.0
+    assert len(ShapeStore(store).pairs()) == part["pairs_matched"]
+    assert main(["pairwise", *files, "--metric", "geodesic", "--resolution", "400", "--samples", str(N),
+                 "-k", "1", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert f"{part['pairs_matched']} of 10 pairs matched (each shape's 1 nearest)" in out
+    for extra, message in ((["--mds", str(tmp_path / "m.png")], "--mds needs every pair"),
+                           (["--dask", "2"], "-k is not available with --dask")):
+        assert main(["pairwise", *files, "-k", "1", *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err

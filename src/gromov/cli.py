@@ -682,6 +682,8 @@ def cmd_pairwise(args) -> int:
             raise _UserError(f"--out {args.out} is a folder")
         if Path(args.out).parent and not Path(args.out).parent.exists():
             raise _UserError(f"output folder {Path(args.out).parent} does not exist")
+    if args.k is not None and args.mds:
+        raise _UserError("--mds needs every pair; -k matches only each shape's nearest")
     if args.mds:
         _check_png(args.mds, "--mds")
         if n < 3:
@@ -691,6 +693,9 @@ def cmd_pairwise(args) -> int:
         except ImportError:
             raise _UserError("--mds needs matplotlib: pip install 'gromov[plot]'") from None
     dask = args.dask is not None or args.scheduler is not None
+    if dask and args.k is not None:
+        raise _UserError(f"-k is not available with {'--dask' if args.dask is not None else '--scheduler'}: "
+                         "use --jobs")
     if dask:
         import importlib.util
 
@@ -736,13 +741,14 @@ def cmd_pairwise(args) -> int:
             r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
                           metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
                           progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
-                          rank_residual=args.rank_residual, store=store, client=client)
+                          rank_residual=args.rank_residual, store=store, client=client, k=args.k)
     finally:
         _close_store(store, handler)
     seconds = time.perf_counter() - t
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
-    nearest = np.argmin(D + np.diag(np.full(n, np.inf)), axis=1)
+    # (with -k the pairs not matched are NaN: never nearest)
+    nearest = np.argmin(np.where(np.isnan(D), np.inf, D) + np.diag(np.full(n, np.inf)), axis=1)
     names = list(args.files)
     result = {"files": names, "metric": args.metric, "metric_options": options,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
@@ -752,6 +758,8 @@ def cmd_pairwise(args) -> int:
               "relative_trimmed_distance": r.trimmed.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
               "seconds": seconds}
+    if args.k is not None:
+        result.update(k=args.k, pairs_matched=n * (n - 1) // 2 - r.skipped, pairs_skipped=r.skipped)
     if store is not None:
         result["store"] = {"path": args.store, "shapes_read": store.reused, "pairs_read": store.pairs_reused}
     if labels is not None:
@@ -760,7 +768,8 @@ def cmd_pairwise(args) -> int:
         same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
         result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
                       local_scaling_k=None, errors_at_eer_local=None)
-        if same.any() and not same.all():   # else all one class, or every shape its own: no EER
+        if same.any() and not same.all() and args.k is None:   # else all one class, or every shape its
+            # own, or not every pair matched: no EER
             curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
             local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
             result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
@@ -795,7 +804,9 @@ def cmd_pairwise(args) -> int:
     if args.json:
         print(_dumps(result))
         return 0
-    print(f"{n} shapes, {n * (n - 1) // 2} pairs, {args.metric} metric, {args.samples} samples per "
+    pairs = (f"{n * (n - 1) // 2} pairs" if args.k is None else
+             f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)")
+    print(f"{n} shapes, {pairs}, {args.metric} metric, {args.samples} samples per "
           f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
     if store is not None:
         print(f"  store {args.store}: {store.reused} of {n} shapes and {store.pairs_reused} of "
@@ -810,7 +821,9 @@ def cmd_pairwise(args) -> int:
               f"{r.trimmed[i, j]:.4%}){mark}")
     if labels is not None:
         if result["eer"] is None:
-            print("  labels: no equal error rate (needs two shapes of a class and two classes); "
+            why = ("needs every pair; -k matched only each shape's nearest" if args.k is not None else
+                   "needs two shapes of a class and two classes")
+            print(f"  labels: no equal error rate ({why}); "
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
         else:
             other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
@@ -1244,6 +1257,11 @@ def _pairwise_parser(sub) -> None:
                    help=".npz with all matrices, or .csv with the matrix the results rank by "
                         "(named in its first cell)")
     q.add_argument("--mds", default=None, metavar="FILE.png", help="draw a 2-D MDS map of the shapes")
+    q.add_argument("-k", "--nearest", dest="k", type=_positive_int, default=None, metavar="K",
+                   help="match only the pairs that can be among some shape's K nearest (the pruning "
+                        "of gromov search: recall 1.0 on the validation sets, not guaranteed); the "
+                        "others are empty (NaN) in the matrices and not counted; no equal error rate "
+                        "or MDS map (they need every pair); refused with --dask or --scheduler")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--store", default=None, metavar="DIR",
                    help="shape store (gromov index): read each shape's metric from it or add it, "

@@ -331,8 +331,10 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         Only each shape's ``k`` nearest others (:func:`gromov.retrieval.knn_pairs`): the pairs
         are taken in order of a per-shape estimate, and a pair that cannot enter the k nearest
         of either of its shapes is not matched; its entries are NaN, and ``skipped`` counts
-        them. The pruning is :func:`gromov.retrieval.knn_pairs`' default (``prune="profile"``,
-        recall 1.0 on the validation sets: docs/guide/retrieval.md). Not with ``client``.
+        them. The pruning is :func:`gromov.retrieval.knn_pairs`' default (``prune="profile"``:
+        the profile gap, and the triangle estimates from the pairs matched, given in ``known``
+        or recorded in ``store``; recall 1.0 on the validation sets: docs/guide/retrieval.md).
+        Not with ``client``.
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``, ``search``...).
 
