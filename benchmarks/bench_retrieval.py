@@ -81,7 +81,7 @@ def replay_queries(V, B, G, k, prune, slack, triangle_slack=None):
             for a in others:
                 for b in others:
                     if a < b:
-                        triangle.add(a, b, V[a, b])
+                        triangle.add(a, b, V[a, b], estimates=False)
         _, rows, _, n_skip = _schedule(pairs, lambda ij: [(0, ij[1])], key, gap, k, 1,
                                        lambda take, q=q: [V[q, j] for _, j in take], known={},
                                        triangle=triangle, nodes=lambda ij, q=q: (q, ij[1]))

@@ -1213,8 +1213,8 @@ def _search_parser(sub) -> None:
     q.add_argument("--triangle-slack", type=_nonnegative_float, default=TRIANGLE_SLACK, metavar="T",
                    help="--prune profile: skip a shape also when T times |d(query, m) - d(m, shape)| "
                         "exceeds the k-th distance found, for the shapes m matched so far whose "
-                        "distance to it the store has recorded (by pairwise or index runs; default "
-                        f"{TRIANGLE_SLACK:g}; 0: off)")
+                        "distance to it the store has recorded (gromov pairwise records them; "
+                        f"default {TRIANGLE_SLACK:g}; 0: off)")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)

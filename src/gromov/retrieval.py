@@ -86,8 +86,8 @@ from ._defaults import DEFAULT_RESOLUTION, PROFILE_SLACK, RANK_RESIDUAL, RANK_TA
 from .gh import RANK_LOG_FLOOR, ShapeMetric, _match, _upgrade_options, check_rank_residual, check_rank_tau_scale
 from .gmds import EmbeddedDistance, norm_value, parse_norm, trimmed_rms
 
-__all__ = ["BOUND_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs", "NearestResult", "Neighbor", "ShapeBound",
-           "knn_pairs", "nearest", "pair_bound", "profile_gap", "shape_bound"]
+__all__ = ["BOUND_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs", "NearestResult", "Neighbor",
+           "ShapeBound", "knn_pairs", "nearest", "pair_bound", "profile_gap", "shape_bound"]
 
 logger = logging.getLogger(__name__)
 
@@ -326,18 +326,21 @@ class _Triangle:
         self.known: dict = {}   # node -> {node: value}
         self.est: dict = {}     # (a, b), a < b -> the largest difference found
 
-    def add(self, a, b, value: float) -> None:
-        """Record the value of the pair ``(a, b)`` and raise the estimates it takes part in."""
+    def add(self, a, b, value: float, *, estimates: bool = True) -> None:
+        """Record the value of the pair ``(a, b)`` and raise the estimates it takes part in
+        (``estimates=False``: only record it, as a pivot for pairs added later -- a search
+        needs no estimates between two candidates)."""
         value = float(value)
         if not np.isfinite(value) or b in self.known.get(a, {}):
             return
         ka, kb = self.known.setdefault(a, {}), self.known.setdefault(b, {})
-        for m, w in kb.items():   # a - b - m
-            if m != a:
-                self._raise(a, m, abs(value - w))
-        for m, w in ka.items():   # b - a - m
-            if m != b:
-                self._raise(b, m, abs(value - w))
+        if estimates:
+            for m, w in kb.items():   # a - b - m
+                if m != a:
+                    self._raise(a, m, abs(value - w))
+            for m, w in ka.items():   # b - a - m
+                if m != b:
+                    self._raise(b, m, abs(value - w))
         ka[b] = kb[a] = value
 
     def _raise(self, a, b, t: float) -> None:
@@ -544,15 +547,16 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
                                                     rank_tau_scale)
     if not candidates:
         raise ValueError("no shapes to search: the collection is empty (or holds only the query)")
-    if triangle is not None:   # the candidates' known pairs: node -1 is the query
+    known = {(int(i), int(j)): v for (i, j), v in (known or {}).items()}
+    bad = [ij for ij in known if not (0 <= min(ij) and max(ij) < len(candidates)) or ij[0] == ij[1]]
+    if bad:
+        raise ValueError(f"known needs pairs of two candidates (positions below {len(candidates)}), got {bad[0]}")
+    if triangle is not None:   # the candidates' known pairs, pivots for the query (node -1)
         at = 2 if rank_by == "trimmed" else 1
         for (i, j), v in (recorded(options) if recorded is not None else {}).items():
-            triangle.add(i, j, v[at])
-        for (i, j), v in (known or {}).items():
-            if not (0 <= int(i) < len(candidates) and 0 <= int(j) < len(candidates)) or int(i) == int(j):
-                raise ValueError(f"known needs pairs of two candidates (positions below {len(candidates)}), "
-                                 f"got {(i, j)}")
-            triangle.add(int(i), int(j), v)
+            triangle.add(i, j, v[at], estimates=False)
+        for (i, j), v in known.items():
+            triangle.add(i, j, v, estimates=False)
     qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
     kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
     cbs = [c.bound() for c in candidates]
