@@ -519,3 +519,23 @@ def test_symmetrise_inplace_is_the_numpy_expression(n):
         symmetrise_inplace(ro)
     with pytest.raises(ValueError, match="square"):
         symmetrise_inplace(np.ones((2, 3)))
+
+
+def test_distances_to_stops_early_with_the_full_marches_values(sphere4):
+    """A march stopped once its targets are final gives them the values of the full march,
+    whatever the limit; targets beyond the limit are inf; repeated targets and a target that is
+    the source itself are fine."""
+    V, F = sphere4
+    fm = FastMarching(V, F)
+    rng = np.random.default_rng(4)
+    n = len(V)
+    src = rng.choice(n, 40, replace=False)
+    full = fm.distances(src)
+    targets = rng.integers(0, n, (40, 3))
+    targets[::5, 1] = targets[::5, 0]
+    targets[::7, 2] = src[::7]
+    exact = np.take_along_axis(full, targets, axis=1)
+    for limit in (np.inf, 0.3, 1.0):
+        got = fm.distances_to(src, targets, limit=limit)
+        np.testing.assert_array_equal(got, np.where(exact <= limit, exact, np.inf))
+    assert np.isinf(fm.distances_to(src, targets, limit=0.3)).any()

@@ -156,9 +156,9 @@ def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
     SHREC'16 protocol): for every vertex, :math:`d_Y(T(x), T_0(x))`, computed on the input
     mesh by fast marching from the true vertex (:class:`gromov.metrics._fmm.FastMarching`);
     at a point inside a face, the squared distances to its corners are interpolated
-    barycentrically. Each march stops as soon as it has reached the image (at the first of
-    :data:`DENSE_LIMITS` times sqrt(area) that covers it), so that a precise map costs a small
-    disk per vertex.
+    barycentrically. Each march stops as soon as the distances of the image's corners are
+    final, and at the latest at the first of :data:`DENSE_LIMITS` times sqrt(area) that
+    covers them, so that a precise map costs a small disk per vertex.
 
     Parameters
     ----------

@@ -1204,12 +1204,14 @@ def _admit_angle(pol, c, phi):
 
 
 @njit(cache=True)
-def _march(tab, sources, T, pos, hk, hv, lab, dirs, mode, limit=np.inf):
+def _march(tab, sources, T, pos, hk, hv, lab, dirs, mode, limit=np.inf, stop=None):
     """Fast marching from the set ``sources`` into ``T`` (overwritten).
 
     The march stops once every value up to ``limit`` is final: then ``T[v] <= limit`` holds
     exactly for the vertices within ``limit`` of the sources, and every other value is a
-    tentative one above ``limit`` (or inf).
+    tentative one above ``limit`` (or inf). Given ``stop`` (vertex indices), it also stops as
+    soon as all of them are final (frozen): their values are then those of the full march,
+    the others' may be tentative.
 
     ``tab``: the tables of :class:`FastMarching` (``_tables``). ``pos``, ``hv``,
     ``lab`` (n, int32), ``hk`` (n, float64) and ``dirs`` (n, 4) are work arrays.
@@ -1246,10 +1248,25 @@ def _march(tab, sources, T, pos, hk, hv, lab, dirs, mode, limit=np.inf):
             dirs[s, 3] = 0.0
             _sift_up(hk, hv, pos, size, 0.0, s)
             size += 1
+    remaining = 0   # the distinct vertices of stop not frozen yet
+    if stop is not None:
+        for q in range(stop.shape[0]):
+            seen = False
+            for r in range(q):
+                seen = seen or stop[r] == stop[q]
+            if not seen:
+                remaining += 1
     while size > 0 and hk[0] <= limit:
         v = hv[0]
         Tv = hk[0]
         size = _pop(hk, hv, pos, size)
+        if stop is not None:
+            for q in range(stop.shape[0]):
+                if stop[q] == v:
+                    remaining -= 1
+                    break
+            if remaining == 0:   # (a frozen value never changes)
+                break
         lv = lab[v]
         pv = np.nan  # direction of the virtual source of v, for the consistency test
         pd = np.nan  # ... and for direction-aware edge updates
@@ -1410,14 +1427,14 @@ def _march_many_serial(tab, sources, out, mode):
 @njit(cache=True, parallel=True)
 def _march_pairs(tab, sources, targets, limit, out, nchunks, mode):
     """``out[i, j]`` = distance from ``sources[i]`` to vertex ``targets[i, j]``, each march
-    stopped at ``limit`` (values beyond it are inf)."""
+    stopped once its targets are final or at ``limit`` (values beyond it are inf)."""
     k = sources.shape[0]
     n = tab[0].shape[0] - 1
     for ch in prange(nchunks):
         T, pos, hk, hv, lab, dirs, src = _work_arrays(n)
         for i in range(ch, k, nchunks):
             src[0] = sources[i]
-            _march(tab, src, T, pos, hk, hv, lab, dirs, mode, limit)
+            _march(tab, src, T, pos, hk, hv, lab, dirs, mode, limit, targets[i])
             for j in range(targets.shape[1]):
                 t = T[targets[i, j]]
                 out[i, j] = t if t <= limit else np.inf
@@ -1593,8 +1610,9 @@ class FastMarching:
         targets : array_like of int, shape (k, t)
             ``targets[i]``: the vertices whose distance from ``sources[i]`` is wanted.
         limit : float, default inf
-            Each march stops once all distances up to ``limit`` are final, so that a source
-            near its targets costs a march over a small disk only.
+            Each march stops once all distances up to ``limit`` are final, or earlier, once its
+            targets' distances are final, so that a source near its targets costs a march
+            over a small disk only.
 
         Returns
         -------
