@@ -1173,16 +1173,6 @@ def _positive_float(text: str) -> float:
     return v
 
 
-def _nonnegative_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
-    if not 0 <= v < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {v}")
-    return v
-
-
 def _search_parser(sub) -> None:
     q = sub.add_parser("search", help="the shapes of a shape store nearest to a query, skipping the "
                                       "pairs a per-shape bound rules out")
