@@ -185,13 +185,11 @@ def retrieval_rows(shapes, D, R, T, k: int) -> dict:
 
     out = {}
     default_t = retrieval.TRIANGLE_SLACK
-    knn_all = [(prune, slack, t, name) for prune, slack, t, name in (
-        ("profile", retrieval.PROFILE_SLACK, default_t, "profile"),
-        ("profile", retrieval.PROFILE_SLACK, 0, "profile, no triangle"),
-        ("profile", LARGER_SLACK, 0, f"profile {LARGER_SLACK:g}"),
-        ("bound", retrieval.PROFILE_SLACK, 0, "bound"))]
     matched_by_knn = set()
-    for prune, slack, t, name in knn_all:
+    for prune, slack, t, name in (("profile", retrieval.PROFILE_SLACK, default_t, "profile"),
+                                  ("profile", retrieval.PROFILE_SLACK, 0, "profile, no triangle"),
+                                  ("profile", LARGER_SLACK, 0, f"profile {LARGER_SLACK:g}"),
+                                  ("bound", retrieval.PROFILE_SLACK, 0, "bound")):
         ran.clear()
         r = retrieval.knn_pairs(shapes, k, run, prune=prune, slack=slack, triangle_slack=t)
         got = [r.neighbors[i].tolist() for i in range(n)]
