@@ -143,7 +143,8 @@ def anchors_table() -> str:
     e2e = load("speed.json")["end_to_end"]
     ours, heat = f["gromov fmm (ours)"], f["potpourri3d heat"]
     big = max(fps["rows"], key=lambda row: row["points"])
-    td, tt = dense["topkids"]["summary"], dense["tosca"]["summary"]
+    tosca = load("dense_tosca.json")["tosca"]
+    td, tt = dense["topkids"]["summary"], tosca["summary"]
     rows = [
         "| task | gromov | anchor |",
         "|---|---|---|",
@@ -162,8 +163,9 @@ def anchors_table() -> str:
         f"| dense map, {len(dense['topkids']['pairs'])} TOPKIDS pairs (real topological noise): mean "
         f"error × 100 / √area | {td['ours_dense']['mean']:.2f} | {td['pyfm_dense']['mean']:.2f} "
         "(pyFM, functional maps + ZoomOut) |",
-        f"| dense map, {len(dense['tosca']['pairs'])} clean TOSCA pairs: the same | "
-        f"{tt['ours_dense']['mean']:.2f} | {tt['pyfm_dense']['mean']:.2f} (pyFM) |",
+        f"| dense map, {len(tosca['pairs'])} clean TOSCA pairs ({len(tosca['classes'])} classes): mean; median | "
+        f"{tt['ours_dense']['mean']:.2f}; {tt['ours_dense']['median']:.2f} | {tt['pyfm_dense']['mean']:.2f}; "
+        f"{tt['pyfm_dense']['median']:.2f} (pyFM) |",
         f"| farthest point sampling, {big['points']:,} points → {big['samples']:,} | "
         f"{_secs(big['ours_s'])} | {_secs(big['fpsample_vanilla_s'])} / "
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
@@ -357,16 +359,18 @@ DENSE_LABELS = (("ours_samples", "ours, at our samples"), ("ours_dense", "**ours
                 ("pyfm_samples", "pyFM, at our samples"), ("pyfm_dense", "pyFM, dense"))
 
 
-def dense_table(ours: dict, placed: dict, ds: str) -> str:
-    """bench_dense.py on one data set: the dense map beside pyFM's (and without ZoomOut)."""
+def dense_table(ours: dict, placed: dict | None, ds: str) -> str:
+    """bench_dense.py on one data set: the dense map beside pyFM's (and without ZoomOut, where
+    ``placed`` is given)."""
     rows = ["| map | mean | median | mean, direct | gross | s / pair |", "|---|---|---|---|---|---|"]
     for key, label in DENSE_LABELS:
         r = ours[ds]["summary"][key]
         rows.append(f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
                     f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
-    r = placed[ds]["summary"]["ours_dense"]
-    rows.append(f"| ours, dense, placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} | "
-                f"{r['mean_direct']:.2f} | {r['gross']} | |")
+    if placed is not None:
+        r = placed[ds]["summary"]["ours_dense"]
+        rows.append(f"| ours, dense, placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} | "
+                    f"{r['mean_direct']:.2f} | {r['gross']} | |")
     return "\n".join(rows)
 
 
@@ -404,6 +408,7 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("match.json", match_table(m)), ("match.json", match_speed(m)),
             ("dense.json, dense-placed.json", dense_table(dense, placed, "topkids")),
             ("dense.json, dense-placed.json", dense_table(dense, placed, "tosca")),
+            ("dense_tosca.json", dense_table(load("dense_tosca.json"), None, "tosca")),
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
             ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
             ("speed.json", speed_table(load("speed.json"))),

@@ -230,10 +230,14 @@ def test_anchor_table_is_the_results_files():
     assert (f"| {e2e['gromov_s']:.2f} s; {e2e['gromov_error']:.4f} | {e2e['pipeline_s']:.2f} s; "
             f"{e2e['pipeline_error']:.4f} (potpourri3d" in rows[3])
     dense = _json("dense.json")
-    for row, ds in ((rows[4], "topkids"), (rows[5], "tosca")):
-        s = dense[ds]["summary"]
-        assert f"| {s['ours_dense']['mean']:.2f} | {s['pyfm_dense']['mean']:.2f} " in row, row
+    s = dense["topkids"]["summary"]
+    assert f"| {s['ours_dense']['mean']:.2f} | {s['pyfm_dense']['mean']:.2f} " in rows[4], rows[4]
     assert len(dense["topkids"]["pairs"]) == 25 and "25 TOPKIDS pairs" in rows[4]
+    tosca = _json("dense_tosca.json")["tosca"]
+    s = tosca["summary"]
+    assert (f"| {s['ours_dense']['mean']:.2f}; {s['ours_dense']['median']:.2f} | {s['pyfm_dense']['mean']:.2f}; "
+            f"{s['pyfm_dense']['median']:.2f} (pyFM) |") in rows[5], rows[5]
+    assert len(tosca["classes"]) == 8 and len(tosca["pairs"]) == 16 and "16 clean TOSCA pairs (8 classes)" in rows[5]
     big = _json("cloud_sampling.json")["rows"][-1]
     assert big["points"] == 1_000_000
     assert (f"| {big['ours_s']:.2f} s | {big['fpsample_vanilla_s']:.2f} s / {big['fpsample_quickfps_s']:.2f} s"
@@ -248,10 +252,10 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 13
+    assert len(tables) == 14
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
-    (foundation, steps, match_acc, match_speed, _, _, sampling, clouds, speed, collection, retrieval, resume,
+    (foundation, steps, match_acc, match_speed, _, _, _, sampling, clouds, speed, collection, retrieval, resume,
      dask) = (t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
@@ -312,6 +316,8 @@ def test_dense_tables_are_the_results_files():
             assert row in page, row
         r = placed[ds]["summary"]["ours_dense"]
         assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in page
+    r = _json("dense_tosca.json")["tosca"]["summary"]["pyfm_dense"]
+    assert f"| pyFM, dense | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | {r['gross']} |" in page
     cost = _json("dense_cost.json")
     flat = page.replace("\n", " ")
     assert f"it adds {cost['added_s']:.2f} s to a {cost['seconds']['sparse']:.2f} s match" in flat
