@@ -404,6 +404,8 @@ def test_nearest_reads_the_pairs_recorded_between_candidates(tmp_path, shape_fil
     with_tri = nearest(q, store, 1, "geodesic", triangle_slack=1.0, **kw)
     without = nearest(q, store, 1, "geodesic", triangle_slack=0, **kw)
     assert 1 <= with_tri.full_matches < without.full_matches
+    assert with_tri.known_pairs == len(got) == 6 and without.known_pairs == 0
+    assert with_tri.to_dict()["known_pairs"] == 6
     assert with_tri.neighbors[0].name == without.neighbors[0].name
     with pytest.raises(ValueError, match="known"):
         nearest(shape_files["sphere"], [shape_files["ellipsoid"]], 1, "geodesic", known={(0, 3): 1.0}, **kw)

@@ -648,8 +648,10 @@ def cmd_search(args) -> int:
         return 0
     n = r.full_matches + r.skipped
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+    how = ("exact" if r.exact else "by the profile gap" + (f" and {r.known_pairs:,} recorded distances between "
+                                                          "them" if r.known_pairs else "") + ": not exact")
     print(f"{len(r.neighbors)} nearest of {n} shapes by {what}; {r.full_matches} matched, {r.skipped} "
-          f"skipped ({'exact' if r.exact else 'by the profile gap: not exact'}), {seconds:.1f} s")
+          f"skipped ({how}), {seconds:.1f} s")
     width = max(len(x.name) for x in r.neighbors)
     for i, x in enumerate(r.neighbors, 1):
         print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.4%}")

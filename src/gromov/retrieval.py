@@ -438,7 +438,8 @@ class NearestResult:
         Pairs (query, candidate) matched in full.
     skipped : int
         Candidates not matched: their lower bound (or, ``prune="profile"``, their profile gap
-        times ``slack``) exceeded the k-th value found.
+        times ``slack`` or their triangle estimate times ``triangle_slack``) exceeded the k-th
+        value found.
     bounds, gaps : ndarray (m,)
         Each candidate's lower bound (:func:`pair_bound`) and profile gap (:func:`profile_gap`).
     values : dict
@@ -446,6 +447,9 @@ class NearestResult:
     exact : bool
         Whether only the lower bound pruned (the neighbours are brute force's).
     rank_by : str
+    known_pairs : int
+        Values between candidates known for the triangle estimates (recorded in the store, or
+        given in ``known``); 0 when the estimates are off.
     """
 
     neighbors: list
@@ -456,13 +460,14 @@ class NearestResult:
     values: dict = field(default_factory=dict)
     exact: bool = True
     rank_by: str = "trimmed"
+    known_pairs: int = 0
 
     def to_dict(self) -> dict:
         """The JSON of ``gromov search --json``: ``neighbors`` (``file``, ``distance``, nearest
-        first), ``full_matches``, ``skipped``, ``exact`` and ``ranked_by``."""
+        first), ``full_matches``, ``skipped``, ``exact``, ``ranked_by`` and ``known_pairs``."""
         return {"neighbors": [{"file": n.name, "distance": n.distance} for n in self.neighbors],
                 "full_matches": self.full_matches, "skipped": self.skipped, "exact": self.exact,
-                "ranked_by": self.rank_by}
+                "ranked_by": self.rank_by, "known_pairs": self.known_pairs}
 
 
 def _ranked(result, rank_by: str) -> float:
@@ -557,6 +562,7 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
             triangle.add(i, j, v[at], estimates=False)
         for (i, j), v in known.items():
             triangle.add(i, j, v, estimates=False)
+    n_known = 0 if triangle is None else sum(len(v) for v in triangle.known.values()) // 2
     qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
     kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
     cbs = [c.bound() for c in candidates]
@@ -583,7 +589,7 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         bar.close()
     neighbors = [Neighbor(j, candidates[j].name, v) for v, j in rows.best[0]]
     return NearestResult(neighbors, n_run, n_skipped, bounds, gaps, {j: v for (_, j), v in values.items()},
-                         prune == "bound" or prune == "none", rank_by)
+                         prune == "bound" or prune == "none", rank_by, n_known)
 
 
 # ----------------------------------------------------------------------------- candidates
