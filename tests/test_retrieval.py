@@ -389,6 +389,8 @@ def test_nearest_reads_the_pairs_recorded_between_candidates(tmp_path, shape_fil
     files = list(shape_files.values())
     store = ShapeStore(tmp_path / "s")
     g = gh_matrix(files, "geodesic", n_samples=N, resolution=None, store=store)
+    gh_matrix(files, "geodesic", n_samples=N, resolution=None, store=store, seed=1)   # other options: not read
+    assert len(store.pairs()) == 20
     kw = {"n_samples": N, "resolution": None}
     q = shape_files["small"]   # a small sphere: the strips are ruled out through the spheres
     rest = [f for f in files if f != q]
