@@ -322,3 +322,23 @@ def test_cli_weld_options(tmp_path, capsys, monkeypatch):
     assert "--separation applies to weld, not to holes" in capsys.readouterr().err
     assert main(["perturb", "weld", str(src), str(out), "--count", "1", "-q"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_far_pairs_is_the_edge_graph_distance_against_each_threshold():
+    """The weld candidates' test ``d_G(u, v) > threshold`` is exact for every pair, also when a
+    pair's gap exceeds the smallest threshold (its vertices then lie far apart in space)."""
+    from scipy.spatial import cKDTree
+
+    from gromov.perturb import _far_pairs
+
+    m = hairpin()
+    rng = np.random.default_rng(0)
+    pairs = cKDTree(m.vertices).query_pairs(1.5, output_type="ndarray")
+    pairs = pairs[rng.permutation(len(pairs))]
+    gap = np.linalg.norm(m.vertices[pairs[:, 0]] - m.vertices[pairs[:, 1]], axis=1)
+    threshold = np.maximum(rng.uniform(0.5, 4.0, len(pairs)) * gap, 0.3)
+    assert (gap > threshold.min()).sum() > 100          # the case a bounded subgraph search misreads
+    d = dijkstra(m.adjacency, directed=False)[pairs[:, 0], pairs[:, 1]]
+    far = _far_pairs(m, pairs, threshold)
+    assert 0 < far.sum() < len(pairs)
+    np.testing.assert_array_equal(far, d > threshold)

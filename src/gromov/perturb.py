@@ -31,6 +31,7 @@ import numbers
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.sparse.csgraph import dijkstra
 
 from .mesh import Mesh
@@ -196,53 +197,117 @@ def _star_cycle(mesh: Mesh, u: int) -> np.ndarray | None:
     return np.asarray(cyc, dtype=np.int64)
 
 
-def _pair_distances(mesh: Mesh, pairs: np.ndarray, limit: float, *, chunk: int = 128) -> np.ndarray:
-    """Edge-graph distance of each pair, ``inf`` beyond ``limit``.
+@njit(cache=True)
+def _farther_than(indptr, indices, weights, sources, targets, thresholds, start, far):
+    """``far[i] = d(sources[k], targets[i]) > thresholds[i]`` for ``i`` in
+    ``start[k]:start[k + 1]`` (the pairs of source ``k``), ``d`` the shortest path along the weighted graph ``(indptr, indices, weights)`` (CSR, symmetric).
 
-    Bounded Dijkstra from the first vertex of each pair, in spatially coherent chunks of
-    sources. A path of length ``<= limit`` from ``s`` stays in the Euclidean ball of that
-    radius around ``s``, so each chunk runs on the subgraph of the vertices in its bounding
-    box grown by ``limit``: exact, and cheap on large meshes.
+    One Dijkstra per source (binary heap with decrease-key), stopped once the smallest
+    tentative distance exceeds the largest threshold of the pairs whose target is not settled
+    yet (those are then farther than their thresholds); a distance is the same sum of edge
+    weights as :func:`scipy.sparse.csgraph.dijkstra`'s.
     """
-    X, A, n = mesh.vertices, mesh.adjacency, mesh.n_vertices
-    L = float(limit)
-    usrc, inv = np.unique(pairs[:, 0], return_inverse=True)
-    cell = np.floor((X[usrc] - X.min(axis=0)) / max(L, mesh.mean_edge_length)).astype(np.int64)
-    order = np.lexsort(cell.T[::-1])
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    prank = rank[inv.reshape(-1)]
-    by = np.argsort(prank, kind="stable")
-    dist = np.empty(len(pairs))
-    local = np.full(n, -1, dtype=np.int64)
-    for k in range(0, len(usrc), chunk):
-        src = usrc[order[k:k + chunk]]
-        lo, hi = X[src].min(axis=0) - L, X[src].max(axis=0) + L
-        sub = np.flatnonzero(((X >= lo) & (X <= hi)).all(axis=1))
-        local[sub] = np.arange(len(sub))
-        d = dijkstra(A[sub][:, sub], directed=False, indices=local[src], limit=L)
-        a, b = np.searchsorted(prank[by], [k, k + chunk])
-        idx = by[a:b]
-        dist[idx] = d[prank[idx] - k, local[pairs[idx, 1]]]
-        local[sub] = -1
-    return dist
+    n = indptr.shape[0] - 1
+    dist = np.full(n, np.inf)
+    state = np.zeros(n, np.int8)        # 0 unseen, 1 in the heap, 2 settled
+    pos = np.empty(n, np.int64)
+    hk = np.empty(n)
+    hv = np.empty(n, np.int64)
+    touched = np.empty(n, np.int64)
+    wanted = np.zeros(n, np.bool_)      # targets of the current source
+    for k in range(sources.shape[0]):
+        lo, hi = start[k], start[k + 1]
+        for i in range(lo, hi):
+            wanted[targets[i]] = True
+        by = lo + np.argsort(-thresholds[lo:hi])   # the pairs by decreasing threshold
+        first = 0                       # (in by) the largest threshold not settled yet
+        m = hi - lo
+        s = sources[k]
+        dist[s] = 0.0
+        state[s] = 1
+        hk[0], hv[0], pos[s] = 0.0, s, 0
+        size = 1
+        nt = 1
+        touched[0] = s
+        while size > 0 and first < m:
+            u = hv[0]
+            du = hk[0]
+            if du > thresholds[by[first]]:
+                break
+            state[u] = 2
+            if wanted[u]:
+                while first < m and state[targets[by[first]]] == 2:
+                    first += 1
+            size -= 1                   # pop: the last entry sifts down from the root
+            if size > 0:
+                key, val = hk[size], hv[size]
+                j = 0
+                while True:
+                    c = 2 * j + 1
+                    if c >= size:
+                        break
+                    if c + 1 < size and hk[c + 1] < hk[c]:
+                        c += 1
+                    if hk[c] >= key:
+                        break
+                    hk[j], hv[j] = hk[c], hv[c]
+                    pos[hv[j]] = j
+                    j = c
+                hk[j], hv[j] = key, val
+                pos[val] = j
+            for e in range(indptr[u], indptr[u + 1]):
+                v = indices[e]
+                if state[v] == 2:
+                    continue
+                dv = du + weights[e]
+                if not dv < dist[v]:
+                    continue
+                if state[v] == 0:
+                    state[v] = 1
+                    touched[nt] = v
+                    nt += 1
+                    j = size
+                    size += 1
+                else:
+                    j = pos[v]
+                dist[v] = dv
+                while j > 0:            # sift up
+                    p = (j - 1) >> 1
+                    if hk[p] <= dv:
+                        break
+                    hk[j], hv[j] = hk[p], hv[p]
+                    pos[hv[j]] = j
+                    j = p
+                hk[j], hv[j] = dv, v
+                pos[v] = j
+        for i in range(lo, hi):
+            t = targets[i]
+            far[i] = not (state[t] == 2 and dist[t] <= thresholds[i])
+            wanted[t] = False
+        for q in range(nt):
+            dist[touched[q]] = np.inf
+            state[touched[q]] = 0
 
 
 def _far_pairs(mesh: Mesh, pairs: np.ndarray, threshold: np.ndarray) -> np.ndarray:
     """Mask of pairs whose edge-graph distance exceeds their ``threshold``.
 
-    Two passes: a cheap one bounded by the smallest threshold removes the pairs that are
-    close along the surface (nearly all of them), then the few left are measured up to the
-    largest threshold among them.
+    One bounded Dijkstra per distinct first vertex (:func:`_farther_than`), stopped at the
+    largest threshold of its partners not reached yet.
     """
     far = np.zeros(len(pairs), bool)
     if len(pairs) == 0:
         return far
-    t_min = float(threshold.min())
-    left = np.flatnonzero(_pair_distances(mesh, pairs, t_min) > t_min)
-    if len(left):
-        d = _pair_distances(mesh, pairs[left], float(threshold[left].max()))
-        far[left] = d > threshold[left]
+    order = np.argsort(pairs[:, 0], kind="stable")
+    first = pairs[order, 0]
+    sources, start = np.unique(first, return_index=True)
+    start = np.append(start, len(first)).astype(np.int64)
+    A = mesh.adjacency
+    out = np.empty(len(pairs), np.bool_)
+    _farther_than(A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64),
+                  sources.astype(np.int64), np.ascontiguousarray(pairs[order, 1], dtype=np.int64),
+                  np.ascontiguousarray(threshold[order], dtype=np.float64), start, out)
+    far[order] = out
     return far
 
 
