@@ -154,6 +154,28 @@ def test_dense_errors_on_a_sphere_are_geodesic():
     np.testing.assert_allclose(e, ang, rtol=0.03, atol=1e-3)
 
 
+def test_the_mirror_probe_bound_is_below_the_errors_and_exact_where_reached():
+    """The lower bounds that decide the mirrored reading's probe: at most the errors, equal to
+    them where the march up to the last limit reached the image's corners."""
+    from gromov.evaluate import DENSE_LIMITS, _errors_at_least
+
+    m = icosphere(3)
+    ref = GeodesicReference(m)
+    rng = np.random.default_rng(2)
+    face = rng.integers(0, m.n_faces, 400)
+    bary = rng.dirichlet(np.ones(3), 400)
+    truth = rng.integers(0, m.n_vertices, 400)
+    scale = np.sqrt(m.area)
+    exact = dense_errors(face, bary, m, truth, fmm=ref) / scale
+    low = _errors_at_least(face, bary, m, truth, ref)
+    assert np.all(low <= exact)
+    corners = ref.fmm.distances(truth)[np.arange(400)[:, None], m.faces[face]]
+    near = (corners <= DENSE_LIMITS[-1] * scale).all(axis=1)   # every corner within the limit
+    assert 0 < near.sum() < len(near)
+    np.testing.assert_array_equal(low[near], exact[near])
+    assert np.all(low[~near] < exact[~near])
+
+
 def test_cli_dense_outputs(tmp_path):
     x = bumpy_torus()
     y, perm = permutation_of(x, 6)

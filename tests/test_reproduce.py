@@ -163,6 +163,25 @@ def test_cached_rows_are_the_solvers_rows():
     assert calls == [3, 1] and rows.from_sources([]).shape == (0, solver.n_vertices)
 
 
+def test_cached_rows_between_are_the_rows_values():
+    """Distances between given pairs, from cached rows or from marches stopped at their
+    targets, are the rows' numbers bit for bit; no row is kept for the marched ones."""
+    from gromov.experiments.reproduce import _CachedRows
+    from gromov.metrics import metric_solver
+    from gromov.shapes import icosphere
+
+    solver = metric_solver(icosphere(3), "geodesic")
+    rng = np.random.default_rng(1)
+    src = rng.integers(0, solver.n_vertices, 300)
+    tgt = rng.integers(0, solver.n_vertices, 300)
+    full = solver.from_sources(np.arange(solver.n_vertices))
+    rows = _CachedRows(solver)
+    rows.from_sources(src[:20])                       # some sources have a row already
+    got = rows.between(src, tgt)
+    np.testing.assert_array_equal(got, full[src, tgt])
+    assert sorted(rows.rows) == sorted(set(src[:20].tolist()))
+
+
 def test_a_match_measures_both_sides_in_the_same_metric():
     """Without metric_options, the shape not prepared yet takes the correspondence options of
     the prepared one's (a ShapeMetric with default options against a mesh: normalised units

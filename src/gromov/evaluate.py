@@ -260,13 +260,26 @@ def _diameter(target: Mesh, ref: GeodesicReference) -> float:
     return float(np.max(d[np.isfinite(d)]))
 
 
+def _errors_at_least(face, bary, target: Mesh, truth, fmm: GeodesicReference) -> np.ndarray:
+    """Lower bounds of :func:`dense_errors` / sqrt(area), from marches stopped at the last of
+    :data:`DENSE_LIMITS`: a corner not reached is farther than the limit, and the error grows
+    with each corner's distance. Exact where all three corners are reached (the same formula);
+    for at most :data:`MAX_FULL_MARCHES` points, whose errors are all marched."""
+    scale = float(np.sqrt(target.area))
+    limit = DENSE_LIMITS[-1] * scale
+    src = target.from_input_ids(np.asarray(truth, dtype=np.int64))
+    d = fmm.fmm.distances_to(src, target.faces[face], limit=limit)
+    return np.sqrt((bary * np.minimum(d, limit) ** 2).sum(axis=1)) / scale
+
+
 def dense_error(face, bary, target: Mesh, truth, symmetry=None, *, fmm=None) -> DenseError:
     """:func:`dense_errors` divided by sqrt(area), against the direct ground truth and, given a
     ``symmetry`` of the target (file ids, -1 where none), against the mirrored one; the
     branch with the lower mean is reported (:class:`DenseError`). The mirrored reading is
     measured in full only when it has the lower mean on ``MIRROR_PROBE`` points drawn with a
-    fixed seed (else the direct one is certainly the better on them, and a mirrored map's
-    errors are all far: each a march over much of the mesh).
+    fixed seed (a mirrored map's errors are all far: each a march over much of the mesh); the
+    probe itself first bounds those errors from below by marches stopped at the last of
+    :data:`DENSE_LIMITS`, and marches on only where the bound leaves the question open.
 
     ``truth`` are file ids of ``target``'s vertices, one per image.
     """
@@ -281,8 +294,10 @@ def dense_error(face, bary, target: Mesh, truth, symmetry=None, *, fmm=None) -> 
         mt = np.where(mt < 0, t, mt)
         # the mirrored reading in full only if it fits better on a seeded subset of the points
         probe = np.sort(np.random.default_rng(0).permutation(len(t))[:MIRROR_PROBE])
-        m_probe = dense_errors(face[probe], bary[probe], target, mt[probe], fmm=fmm) / scale
-        if m_probe.mean() < direct[probe].mean():
+        bar = direct[probe].mean()
+        bounded = len(probe) <= MAX_FULL_MARCHES   # its errors all marched: the bound holds
+        if ((not bounded or _errors_at_least(face[probe], bary[probe], target, mt[probe], fmm).mean() < bar)
+                and (dense_errors(face[probe], bary[probe], target, mt[probe], fmm=fmm) / scale).mean() < bar):
             mirrored = dense_errors(face, bary, target, mt, fmm=fmm) / scale
             if mirrored.mean() < direct.mean():
                 errors, branch = mirrored, "mirrored"
