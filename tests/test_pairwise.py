@@ -95,6 +95,34 @@ def test_prepare_computes_the_search_subsets_once_per_shape():
     assert len(s.subset(10**6)) == s.mesh.n_vertices  # capped at the working vertices
 
 
+def test_diffusion_shapes_prepared_in_workers_are_the_ones_prepared_here():
+    """prepare(..., jobs=2) computes the diffusion shapes in forked workers: every number the
+    matches read (distances, diameter, signatures, samples, subsets, the ranking scale) is
+    the one-process value bit for bit, and the matrices stay read-only."""
+    from gromov.experiments.pairwise import prepare
+    from gromov.gh import ShapeMetric
+
+    shapes, _ = _sheets()
+    opts = {"units": "raw", "tau": 0.005}
+    runs = []
+    for jobs in (1, 2):
+        ss = [ShapeMetric(m, "diffusion", resolution=None, metric_options=opts) for m in shapes]
+        out = prepare(ss, "diffusion", n_samples=20, subsets=[60], rank_tau_scale=0.5, jobs=jobs)
+        assert all(a is b for a, b in zip(out, ss))   # the same objects, prepared
+        runs.append(out)
+    for a, b in zip(*runs):
+        np.testing.assert_array_equal(a.distances, b.distances)
+        assert not b.distances.flags.writeable
+        assert a.diameter == b.diameter
+        np.testing.assert_array_equal(a.descriptors, b.descriptors)
+        assert a._samples.keys() == b._samples.keys() and (60, 0) in b._samples
+        for key in a._samples:
+            np.testing.assert_array_equal(a._samples[key], b._samples[key])
+        (ea, da), (eb, db) = a.ranking_surface(0.5), b.ranking_surface(0.5)
+        assert da == db
+        np.testing.assert_array_equal(ea.embedding, eb.embedding)
+
+
 def test_matrix_holds_the_orientation_free_estimate_and_keep_the_default_map():
     """The GH estimate counts mirror images as correspondences (orientation="ignore"); a kept
     pair's map is ``match``'s default (orientation="prefer")."""

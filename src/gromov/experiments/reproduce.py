@@ -604,7 +604,7 @@ def _recognition(name: str, entries, shapes: _Shapes, st: Settings, jobs: int, o
                                           rank_tau_scale=st.rank_tau_scale, progress=not quiet)
         prepared = prepare(sources, metric, n_samples=st.n_samples, seed=st.seed, resolution=None,
                            metric_options=st.metric_options[metric], progress=not quiet,
-                           rank_tau_scale=st.rank_tau_scale)   # in metrics_s, as per-shape work
+                           rank_tau_scale=st.rank_tau_scale, jobs=jobs)   # in metrics_s, as per-shape work
         for s, sm in zip(items, prepared):
             if s.label in shapes.shared:
                 shapes.prepared[metric, s.label] = sm
