@@ -35,6 +35,7 @@ from numba import njit
 from scipy.sparse.csgraph import dijkstra
 
 from .mesh import Mesh
+from .metrics._fmm import _FROZEN, _UNSEEN, _pop, _sift_up
 
 __all__ = ["Perturbation", "weld", "holes", "WELD_JOINS", "WELD_RESOLUTION"]
 
@@ -200,17 +201,17 @@ def _star_cycle(mesh: Mesh, u: int) -> np.ndarray | None:
 @njit(cache=True)
 def _farther_than(indptr, indices, weights, sources, targets, thresholds, start, far):
     """``far[i] = d(sources[k], targets[i]) > thresholds[i]`` for ``i`` in
-    ``start[k]:start[k + 1]`` (the pairs of source ``k``), ``d`` the shortest path along the weighted graph ``(indptr, indices, weights)`` (CSR, symmetric).
+    ``start[k]:start[k + 1]`` (the pairs of source ``k``), ``d`` the shortest path along the
+    weighted graph ``(indptr, indices, weights)`` (CSR, symmetric).
 
-    One Dijkstra per source (binary heap with decrease-key), stopped once the smallest
-    tentative distance exceeds the largest threshold of the pairs whose target is not settled
-    yet (those are then farther than their thresholds); a distance is the same sum of edge
-    weights as :func:`scipy.sparse.csgraph.dijkstra`'s.
+    One Dijkstra per source (the fast marching's heap with decrease-key), stopped once the
+    smallest tentative distance exceeds the largest threshold of the pairs whose target is not
+    settled yet (those are then farther than their thresholds); a distance is the same sum of
+    edge weights as :func:`scipy.sparse.csgraph.dijkstra`'s.
     """
     n = indptr.shape[0] - 1
     dist = np.full(n, np.inf)
-    state = np.zeros(n, np.int8)        # 0 unseen, 1 in the heap, 2 settled
-    pos = np.empty(n, np.int64)
+    pos = np.full(n, _UNSEEN, np.int64)   # heap slot, _UNSEEN or _FROZEN (settled)
     hk = np.empty(n)
     hv = np.empty(n, np.int64)
     touched = np.empty(n, np.int64)
@@ -224,8 +225,7 @@ def _farther_than(indptr, indices, weights, sources, targets, thresholds, start,
         m = hi - lo
         s = sources[k]
         dist[s] = 0.0
-        state[s] = 1
-        hk[0], hv[0], pos[s] = 0.0, s, 0
+        _sift_up(hk, hv, pos, 0, 0.0, s)
         size = 1
         nt = 1
         touched[0] = s
@@ -234,59 +234,30 @@ def _farther_than(indptr, indices, weights, sources, targets, thresholds, start,
             du = hk[0]
             if du > thresholds[by[first]]:
                 break
-            state[u] = 2
+            size = _pop(hk, hv, pos, size)
             if wanted[u]:
-                while first < m and state[targets[by[first]]] == 2:
+                while first < m and pos[targets[by[first]]] == _FROZEN:
                     first += 1
-            size -= 1                   # pop: the last entry sifts down from the root
-            if size > 0:
-                key, val = hk[size], hv[size]
-                j = 0
-                while True:
-                    c = 2 * j + 1
-                    if c >= size:
-                        break
-                    if c + 1 < size and hk[c + 1] < hk[c]:
-                        c += 1
-                    if hk[c] >= key:
-                        break
-                    hk[j], hv[j] = hk[c], hv[c]
-                    pos[hv[j]] = j
-                    j = c
-                hk[j], hv[j] = key, val
-                pos[val] = j
             for e in range(indptr[u], indptr[u + 1]):
                 v = indices[e]
-                if state[v] == 2:
-                    continue
                 dv = du + weights[e]
-                if not dv < dist[v]:
+                if pos[v] == _FROZEN or not dv < dist[v]:
                     continue
-                if state[v] == 0:
-                    state[v] = 1
+                dist[v] = dv
+                if pos[v] == _UNSEEN:
                     touched[nt] = v
                     nt += 1
-                    j = size
+                    _sift_up(hk, hv, pos, size, dv, v)
                     size += 1
                 else:
-                    j = pos[v]
-                dist[v] = dv
-                while j > 0:            # sift up
-                    p = (j - 1) >> 1
-                    if hk[p] <= dv:
-                        break
-                    hk[j], hv[j] = hk[p], hv[p]
-                    pos[hv[j]] = j
-                    j = p
-                hk[j], hv[j] = dv, v
-                pos[v] = j
+                    _sift_up(hk, hv, pos, pos[v], dv, v)
         for i in range(lo, hi):
             t = targets[i]
-            far[i] = not (state[t] == 2 and dist[t] <= thresholds[i])
+            far[i] = not (pos[t] == _FROZEN and dist[t] <= thresholds[i])
             wanted[t] = False
         for q in range(nt):
             dist[touched[q]] = np.inf
-            state[touched[q]] = 0
+            pos[touched[q]] = _UNSEEN
 
 
 def _far_pairs(mesh: Mesh, pairs: np.ndarray, threshold: np.ndarray) -> np.ndarray:
