@@ -197,7 +197,7 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
                         bar.update(1)
             finally:
                 _PREPARE = []
-        for i, s in enumerate(out):   # the others here (and what a worker left: nothing)
+        for i, s in enumerate(out):   # the others here; a worker's shapes have it all cached
             _prepare_one(s, *work)
             if i not in done:
                 bar.update(1)
