@@ -154,6 +154,22 @@ def test_dense_errors_on_a_sphere_are_geodesic():
     np.testing.assert_allclose(e, ang, rtol=0.03, atol=1e-3)
 
 
+def test_dense_errors_are_the_marched_distances_near_and_far():
+    """Near images (done at a limit) and far ones (marched in full at the end): every error is
+    the full march's value."""
+    m = icosphere(3)
+    ref = GeodesicReference(m)
+    rng = np.random.default_rng(3)
+    face = rng.integers(0, m.n_faces, 400)
+    bary = rng.dirichlet(np.ones(3), 400)
+    truth = rng.integers(0, m.n_vertices, 400)
+    D = ref.fmm.distances(truth)[np.arange(400)[:, None], m.faces[face]]
+    e = dense_errors(face, bary, m, truth, fmm=ref)
+    np.testing.assert_array_equal(e, np.sqrt((bary * D**2).sum(axis=1)))
+    scale = np.sqrt(m.area)
+    assert (e < evaluate.DENSE_LIMITS[0] * scale).any() and (e > evaluate.DENSE_LIMITS[-1] * scale).sum() > 100
+
+
 def test_the_mirror_probe_bound_is_below_the_errors_and_exact_where_reached():
     """The lower bounds that decide the mirrored reading's probe: at most the errors, equal to
     them where the march up to the last limit reached the image's corners."""
