@@ -230,7 +230,8 @@ def _prepared_state(k: int, work) -> bytes:
     pickled with protocol 5 (read-only arrays come back read-only)."""
     import pickle
 
-    s = _PREPARE[k]
+    given = _PREPARE[k]   # prepared afresh, so that nothing stays in the worker once sent
+    s = ShapeMetric(given.input, given.metric, metric_options=given.metric_options, working=given.working)
     _prepare_one(s, *work)
     # the dense matrix is made again from the embedding where it is installed (a product
     # of 0.1 s against 72 MB to send at 3,000 vertices): the same numbers
