@@ -154,16 +154,23 @@ def test_dense_errors_on_a_sphere_are_geodesic():
     np.testing.assert_allclose(e, ang, rtol=0.03, atol=1e-3)
 
 
+def _random_images_on_a_sphere(seed: int, k: int = 400):
+    """A sphere, its reference, and ``k`` random image points with random true vertices, and
+    the full marches' distances from each true vertex to its image's corners."""
+    m = icosphere(3)
+    ref = GeodesicReference(m)
+    rng = np.random.default_rng(seed)
+    face = rng.integers(0, m.n_faces, k)
+    bary = rng.dirichlet(np.ones(3), k)
+    truth = rng.integers(0, m.n_vertices, k)
+    corners = ref.fmm.distances(truth)[np.arange(k)[:, None], m.faces[face]]
+    return m, ref, face, bary, truth, corners
+
+
 def test_dense_errors_are_the_marched_distances_near_and_far():
     """Near images (done at a limit) and far ones (marched in full at the end): every error is
     the full march's value."""
-    m = icosphere(3)
-    ref = GeodesicReference(m)
-    rng = np.random.default_rng(3)
-    face = rng.integers(0, m.n_faces, 400)
-    bary = rng.dirichlet(np.ones(3), 400)
-    truth = rng.integers(0, m.n_vertices, 400)
-    D = ref.fmm.distances(truth)[np.arange(400)[:, None], m.faces[face]]
+    m, ref, face, bary, truth, D = _random_images_on_a_sphere(3)
     e = dense_errors(face, bary, m, truth, fmm=ref)
     np.testing.assert_array_equal(e, np.sqrt((bary * D**2).sum(axis=1)))
     scale = np.sqrt(m.area)
@@ -175,17 +182,11 @@ def test_the_mirror_probe_bound_is_below_the_errors_and_exact_where_reached():
     them where the march up to the last limit reached the image's corners."""
     from gromov.evaluate import DENSE_LIMITS, _errors_at_least
 
-    m = icosphere(3)
-    ref = GeodesicReference(m)
-    rng = np.random.default_rng(2)
-    face = rng.integers(0, m.n_faces, 400)
-    bary = rng.dirichlet(np.ones(3), 400)
-    truth = rng.integers(0, m.n_vertices, 400)
+    m, ref, face, bary, truth, corners = _random_images_on_a_sphere(2)
     scale = np.sqrt(m.area)
     exact = dense_errors(face, bary, m, truth, fmm=ref) / scale
     low = _errors_at_least(face, bary, m, truth, ref)
     assert np.all(low <= exact)
-    corners = ref.fmm.distances(truth)[np.arange(400)[:, None], m.faces[face]]
     near = (corners <= DENSE_LIMITS[-1] * scale).all(axis=1)   # every corner within the limit
     assert 0 < near.sum() < len(near)
     np.testing.assert_array_equal(low[near], exact[near])
