@@ -107,8 +107,11 @@ def test_diffusion_shapes_prepared_in_workers_are_the_ones_prepared_here():
     runs = []
     for jobs in (1, 2):
         ss = [ShapeMetric(m, "diffusion", resolution=None, metric_options=opts) for m in shapes]
+        solvers = [s.solver for s in ss]
         out = prepare(ss, "diffusion", n_samples=20, subsets=[60], rank_tau_scale=0.5, jobs=jobs)
         assert all(a is b for a, b in zip(out, ss))   # the same objects, prepared
+        # with two jobs every solver came back from a worker (a new object); with one, in place
+        assert all((s.solver is old) == (jobs == 1) for s, old in zip(ss, solvers))
         runs.append(out)
     for a, b in zip(*runs):
         np.testing.assert_array_equal(a.distances, b.distances)
