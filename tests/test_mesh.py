@@ -1,7 +1,10 @@
 """Facts about meshes: topology invariants, areas, immutability, validation, repair."""
 
+import warnings
+
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import gromov
 from gromov import GromovWarning, Mesh, MeshError, PointCloud, repair
@@ -268,3 +271,80 @@ def test_match_takes_arrays():
                      n_samples=15, resolution=None)
     assert a.distance == b.distance
     np.testing.assert_array_equal(a.x_to_y_vertex, b.x_to_y_vertex)
+
+
+def _two_sheet_fold():
+    """A closed surface that touches itself: an icosphere whose upper half is pressed down onto
+    its lower half over a patch, each touching vertex a separate vertex of its own sheet at the
+    same coordinates as one of the other sheet (a thin fold, as in scanned animal legs)."""
+    base = icosphere(2)
+    v, f = np.array(base.vertices), np.array(base.faces)
+    n = len(v)
+    up = np.flatnonzero(v[:, 2] > 1e-12)
+    mirror = cKDTree(v).query(v[up] * [1, 1, -1])[1]      # the vertex below each upper one
+    patch = np.hypot(v[up, 0], v[up, 1]) < 0.6
+    v[up[patch]] = v[mirror[patch]]   # press the top down onto the bottom: the same coordinates
+    assert patch.sum() >= 3
+    return Mesh(v, f), n, int(patch.sum())
+
+
+def test_repair_keeps_a_closed_surface_touching_itself_as_it_is():
+    m, n, touching = _two_sheet_fold()
+    assert m.is_edge_manifold and len(m.boundary_edges) == 0
+    assert len(np.unique(m.vertices, axis=0)) == n - touching   # coincident vertices, two sheets
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GromovWarning)   # nothing to repair: no warning
+        fixed, report = repair(m)
+    assert fixed is m and not report.changed
+    assert report.coincident_vertices_kept == 2 * touching
+
+
+def test_repair_zips_a_seam_and_a_polygon_soup():
+    base = icosphere(2)
+    # a polygon soup: every triangle with its own three corners
+    soup = Mesh(base.vertices[base.faces.ravel()], np.arange(3 * base.n_faces).reshape(-1, 3))
+    with pytest.warns(GromovWarning, match=f"merged {3 * base.n_faces - base.n_vertices} duplicate"):
+        fixed, report = repair(soup)
+    assert fixed.n_vertices == base.n_vertices and fixed.euler_characteristic == 2
+    assert fixed.is_edge_manifold and len(fixed.boundary_edges) == 0
+    # every corner of the file stands for the vertex at its coordinates
+    np.testing.assert_array_equal(fixed.vertices[fixed.file_index], soup.vertices)
+
+
+def test_file_numbering_kept_when_the_last_vertices_go():
+    base = icosphere(1)
+    n = base.n_vertices
+    # a copy of vertex 5 and an unused vertex at the end of the file
+    v = np.vstack([base.vertices, base.vertices[5], [[7.0, 7.0, 7.0]]])
+    with pytest.warns(GromovWarning):
+        fixed, report = repair(Mesh(v, base.faces))
+    assert fixed.n_vertices == n and fixed.n_file_vertices == n + 2
+    np.testing.assert_array_equal(fixed.file_index, np.r_[np.arange(n), 5, -1])
+    vals = fixed.per_file_vertex(np.arange(n) * 10)
+    np.testing.assert_array_equal(vals, np.r_[np.arange(n) * 10, 50, -1])
+    xyz = fixed.per_file_vertex(fixed.vertices)
+    assert xyz.shape == (n + 2, 3) and np.isnan(xyz[-1]).all()
+    np.testing.assert_array_equal(xyz[:-1], v[:-1])
+    np.testing.assert_array_equal(fixed.from_input_ids([n, 5]), [5, 5])   # the copy: its vertex
+    with pytest.raises(ValueError, match="not a vertex"):
+        fixed.from_input_ids([n + 1])
+    with pytest.raises(ValueError, match=f"one row per vertex \\({n}\\)"):
+        fixed.per_file_vertex(np.zeros(n + 2))
+    # shapes derived from it keep the file's numbering
+    assert fixed.submesh(np.ones(n, bool)).n_file_vertices == n + 2
+    assert fixed.with_vertices(fixed.vertices * 2).n_file_vertices == n + 2
+
+
+def test_repair_drops_vertices_of_removed_faces_only_with_their_file_ids():
+    base = icosphere(1)
+    n = base.n_vertices
+    # a needle: a face whose third corner lies on its first edge, with its own vertex
+    a, b = base.faces[0, :2]
+    v = np.vstack([base.vertices, 0.5 * (base.vertices[a] + base.vertices[b])])
+    f = np.vstack([base.faces, [[a, b, n]]])
+    with pytest.warns(GromovWarning) as rec:
+        fixed, _ = repair(Mesh(v, f), source="needle.off")
+    text = " ".join(str(r.message) for r in rec)
+    assert "removed 1 degenerate" in text and "dropped 1 unreferenced" in text and "-1 or NaN" in text
+    assert fixed.file_index[n] == -1 and fixed.n_file_vertices == n + 1
+    assert (fixed.vertex_areas > 0).all()

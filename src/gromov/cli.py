@@ -883,7 +883,7 @@ def _plot_dense(r, shapes, args) -> None:
 
     sx, sy = shapes
     x_rgb = coordinate_colours(sx.input)
-    y_rgb = r.transfer(_by_file(sx.input, x_rgb), method="barycentric")[sy.input.input_ids]
+    y_rgb = r.transfer(sx.input.per_file_vertex(x_rgb, fill=0.0), method="barycentric")[sy.input.input_ids]
     _, e_y = r.sample_distortion
     q = sy.working.from_source(sy.input.from_input_ids(r.y_samples))
     nearest = np.argmin(sy.distances[:, q], axis=1)[sy.working.source_nearest]
@@ -893,13 +893,6 @@ def _plot_dense(r, shapes, args) -> None:
                   titles=(Path(args.x).name, Path(args.y).name),
                   title=f"{args.metric}: colours of {Path(args.x).name} carried by the dense map\n"
                         f"(grey: high distortion, {shaky.mean():.0%} of the vertices)")
-
-
-def _by_file(mesh, values: np.ndarray) -> np.ndarray:
-    """Rows of a mesh's vertices placed at their file ids (zeros where the file has none)."""
-    out = np.zeros((int(mesh.input_ids.max()) + 1,) + values.shape[1:])
-    out[mesh.input_ids] = values
-    return out
 
 
 def _json_value(o):

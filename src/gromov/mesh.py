@@ -149,17 +149,22 @@ class PointCloud:
     points : array_like, shape (n, 3)
     input_ids : array_like of int, shape (n,), optional
         Index of each point in the user's input; defaults to ``arange(n)``.
+    file_index : array_like of int, shape (n_file,), optional
+        For each point of the user's input (the file), the point of this shape that stands
+        for it, or -1 where there is none; defaults to the inverse of ``input_ids`` over
+        ``0 .. input_ids.max()``. See :attr:`file_index`.
     """
 
     _coords_name = "points"
 
-    def __init__(self, points, *, input_ids=None):
+    def __init__(self, points, *, input_ids=None, file_index=None):
         v = as_vertices(points, name=self._coords_name)
         self._vertices = _readonly(v)
         ids = np.arange(len(v)) if input_ids is None else np.asarray(input_ids, dtype=np.int64)
         if ids.shape != (len(v),):
             raise MeshError(f"input_ids must have shape ({len(v)},), got {ids.shape}")
         self._input_ids = _readonly(ids)
+        self._file_index = _readonly(_check_file_index(file_index, ids, len(v)))
 
     @property
     def vertices(self) -> np.ndarray:
@@ -177,13 +182,61 @@ class PointCloud:
     def n_vertices(self) -> int:
         return self._vertices.shape[0]
 
+    @property
+    def file_index(self) -> np.ndarray:
+        """For each vertex of the user's input (the file, in its numbering), the vertex of
+        this shape that stands for it, ``(n_file,)`` int64: the vertex itself, the vertex a
+        duplicate was merged into (same coordinates), or -1 where loading dropped it (a vertex
+        no face uses). Its length is the file's vertex count, whatever was dropped."""
+        return self._file_index
+
+    @property
+    def n_file_vertices(self) -> int:
+        """Number of vertices of the user's input (the file), dropped ones included."""
+        return len(self._file_index)
+
+    def per_file_vertex(self, values, fill=None) -> np.ndarray:
+        """Per-vertex ``values`` of this shape as one row per vertex of the user's input file.
+
+        The one place where results indexed by this shape's vertices become results indexed
+        by the file's numbering: row ``i`` is the value of the vertex standing for file vertex
+        ``i`` (:attr:`file_index`; a merged duplicate takes the value of the vertex it was
+        merged into), and ``fill`` where loading dropped file vertex ``i``.
+
+        Parameters
+        ----------
+        values : array_like, shape (n_vertices, ...)
+        fill : scalar, optional
+            Value of dropped rows; default -1 for integer values, NaN for floats, False for
+            booleans.
+
+        Returns
+        -------
+        ndarray, shape (n_file_vertices, ...)
+        """
+        v = np.asarray(values)
+        if v.shape[:1] != (self.n_vertices,):
+            raise ValueError(f"values must have one row per vertex ({self.n_vertices}), got shape {v.shape}")
+        if fill is None:
+            fill = False if v.dtype == bool else (-1 if v.dtype.kind in "iu" else np.nan)
+        dtype = np.float64 if v.dtype.kind in "iub" and isinstance(fill, float) and \
+            not fill.is_integer() else v.dtype     # NaN rows make integer values float
+        idx = self._file_index
+        out = np.full((len(idx),) + v.shape[1:], fill, dtype=dtype)
+        kept = idx >= 0
+        out[kept] = v[idx[kept]]
+        return out
+
     def from_input_ids(self, ids) -> np.ndarray:
-        """Vertex indices of this shape for ids of the user's input (inverse of ``input_ids``).
+        """Vertex indices of this shape for ids of the user's input (inverse of ``input_ids``;
+        a file vertex merged into another gives that one, :attr:`file_index`).
 
         Raises ``ValueError`` for an id that is not (or no longer, after repair) a vertex.
         """
         if not hasattr(self, "_input_inverse"):
-            inv = np.full(int(self._input_ids.max()) + 1, -1, dtype=np.int64)
+            n_file = len(self._file_index)
+            inv = np.full(max(int(self._input_ids.max()) + 1, n_file), -1, dtype=np.int64)
+            inv[:n_file] = self._file_index
             inv[self._input_ids] = np.arange(self.n_vertices)
             inv.flags.writeable = False
             self._input_inverse = inv
@@ -206,6 +259,25 @@ class PointCloud:
 
     def __repr__(self) -> str:
         return f"PointCloud(n_vertices={self.n_vertices})"
+
+
+def _check_file_index(file_index, ids: np.ndarray, n: int) -> np.ndarray:
+    """``file_index`` as int64, or by default the inverse of ``ids`` over ``0 .. ids.max()``."""
+    if file_index is None:
+        inv = np.full(int(ids.max()) + 1 if len(ids) else 0, -1, dtype=np.int64)
+        inv[ids] = np.arange(n)
+        return inv
+    idx = np.asarray(file_index, dtype=np.int64)
+    if idx.ndim != 1 or (len(idx) and (idx.min() < -1 or idx.max() >= n)):
+        raise MeshError(f"file_index must be a 1-d array of vertex indices below {n} (or -1), got "
+                        f"shape {idx.shape}" + (f" with values in [{idx.min()}, {idx.max()}]" if idx.size else ""))
+    return idx
+
+
+def _compose_file_index(file_index: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """The file index after the vertices were renumbered by ``new`` (old vertex -> new vertex,
+    -1 for one removed)."""
+    return np.where(file_index >= 0, new[np.maximum(file_index, 0)], -1)
 
 
 def _knn_graph(points: np.ndarray, k: int) -> sp.csr_matrix:
@@ -235,6 +307,9 @@ class Mesh(PointCloud):
         0-based vertex indices of the triangles.
     input_ids : array_like of int, shape (n,), optional
         Index of each vertex in the user's input mesh (defaults to ``arange(n)``).
+    file_index : array_like of int, shape (n_file,), optional
+        The vertex standing for each vertex of the user's input, -1 for none
+        (:attr:`PointCloud.file_index`; defaults to the inverse of ``input_ids``).
 
     Notes
     -----
@@ -245,8 +320,8 @@ class Mesh(PointCloud):
 
     _coords_name = "vertices"
 
-    def __init__(self, vertices, faces, *, input_ids=None):
-        super().__init__(vertices, input_ids=input_ids)
+    def __init__(self, vertices, faces, *, input_ids=None, file_index=None):
+        super().__init__(vertices, input_ids=input_ids, file_index=file_index)
         self._faces = _readonly(as_faces(faces, self.n_vertices))
 
     # ------------------------------------------------------------------ basics
@@ -455,7 +530,8 @@ class Mesh(PointCloud):
         new[keep] = np.arange(int(keep.sum()))
         faces = new[self._faces]
         faces = faces[(faces >= 0).all(axis=1)]
-        return Mesh(self._vertices[keep], faces, input_ids=self._input_ids[keep])
+        return Mesh(self._vertices[keep], faces, input_ids=self._input_ids[keep],
+                    file_index=_compose_file_index(self._file_index, new))
 
     def largest_component(self) -> "Mesh":
         """The connected component with the largest area, as a new mesh (``input_ids`` kept)."""
@@ -469,7 +545,7 @@ class Mesh(PointCloud):
         v = as_vertices(vertices)
         if v.shape != self._vertices.shape:
             raise MeshError(f"vertices must have shape {self._vertices.shape}, got {v.shape}")
-        return Mesh(v, self._faces, input_ids=self._input_ids)
+        return Mesh(v, self._faces, input_ids=self._input_ids, file_index=self._file_index)
 
     def summary(self) -> dict:
         """Counts and topology as a plain dict (what ``gromov info`` prints)."""
@@ -492,13 +568,20 @@ class Mesh(PointCloud):
 
 @dataclass(frozen=True)
 class RepairReport:
-    """What :func:`repair` changed. Counts refer to the mesh that was given."""
+    """What :func:`repair` changed. Counts refer to the mesh that was given.
+
+    ``duplicate_vertices`` were merged into a vertex at the same coordinates;
+    ``coincident_vertices_kept`` share their coordinates with another vertex but were left
+    apart, because merging them would join two sheets of the surface (a fold that touches
+    itself, two parts meeting at a point) into a non-manifold mesh.
+    """
 
     degenerate_faces: int = 0
     duplicate_faces: int = 0
     duplicate_vertices: int = 0
     unreferenced_vertices: int = 0
     messages: list[str] = field(default_factory=list)
+    coincident_vertices_kept: int = 0
 
     @property
     def changed(self) -> bool:
@@ -506,13 +589,99 @@ class RepairReport:
                     or self.unreferenced_vertices)
 
 
-def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple[Mesh, RepairReport]:
-    """Remove what breaks intrinsic metrics, keeping the map to the input vertices.
+def _non_manifold_at(faces: np.ndarray, centres: np.ndarray, n: int) -> np.ndarray:
+    """The vertices of ``centres`` around which ``faces`` (no face with a repeated vertex) do
+    not form one disk or half-disk: the link of such a vertex (the opposite edges of its
+    faces) has an edge twice (a repeated face), a vertex in more than two of its edges (an
+    edge of more than two faces) or more than one connected piece (two fans that meet only at
+    the vertex)."""
+    is_centre = np.zeros(n, bool)
+    is_centre[centres] = True
+    w, a, b = [], [], []
+    for k in range(3):   # each face once per corner that is a centre, that corner first
+        hit = is_centre[faces[:, k]]
+        w.append(faces[hit, k])
+        a.append(faces[hit, (k + 1) % 3])
+        b.append(faces[hit, (k + 2) % 3])
+    w, a, b = np.concatenate(w), np.concatenate(a), np.concatenate(b)
+    bad = np.zeros(n, bool)
+    if not len(w):
+        return np.zeros(0, np.int64)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    edge = np.unique(np.c_[w, lo, hi], axis=0, return_counts=True)
+    bad[edge[0][edge[1] > 1, 0]] = True                       # a repeated face
+    ends, inv = np.unique(np.c_[np.r_[w, w], np.r_[a, b]], axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    bad[ends[np.bincount(inv) > 2, 0]] = True                  # an edge of three or more faces
+    m = len(w)
+    g = sp.coo_matrix((np.ones(m), (inv[:m], inv[m:])), shape=(len(ends), len(ends)))
+    _, label = connected_components(g, directed=False)
+    pieces = np.unique(np.c_[ends[:, 0], label], axis=0)[:, 0]
+    bad[pieces[np.r_[False, pieces[1:] == pieces[:-1]]]] = True   # two pieces around one vertex
+    return np.flatnonzero(bad & is_centre)
 
-    In order: merge vertices with identical coordinates, drop faces with a repeated
-    vertex or zero area, drop repeated faces, drop vertices no face uses. The result's
-    ``input_ids`` still name the vertices of ``mesh``'s input; a merged vertex keeps the
-    smallest input id.
+
+def _merge_targets(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, int]:
+    """``(target, kept)``: the vertex each vertex merges into (itself if it stays) and how
+    many vertices stay apart from another one at the same coordinates.
+
+    Vertices with identical coordinates are merged where the merge leaves a manifold surface
+    around the merged vertex: the two sides of a seam (a surface cut open along a curve, a
+    polygon soup), a vertex split into fans that together close a disk, and any copy that no
+    face uses. Where the merge would join separate sheets (a thin fold touching itself, two
+    parts meeting at a point: two disks at one vertex, or an edge of three faces once repeated
+    faces are removed), the vertices of that position stay apart, as the file has them.
+    """
+    n = len(v)
+    _, group = np.unique(v, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    size = np.bincount(group)
+    if size.max() < 2:
+        return np.arange(n), 0
+    used = np.zeros(n, bool)
+    used[f.ravel()] = True
+    # representative of each group: its first vertex that a face uses (else its first vertex)
+    order = np.lexsort((np.arange(n), ~used, group))
+    first = np.full(len(size), -1, np.int64)
+    starts = np.r_[0, np.cumsum(size)[:-1]]
+    first[:] = order[starts]
+    shared = size[group] > 1
+    n_used = np.bincount(group, weights=used, minlength=len(size))
+    merging = (n_used >= 2)                     # groups where faces use two or more copies
+    while True:
+        target = np.arange(n)
+        copy = shared & (~used | merging[group])  # unused copies always go to the representative
+        target[copy] = first[group[copy]]
+        ff = target[f]
+        ff = ff[(ff[:, 0] != ff[:, 1]) & (ff[:, 1] != ff[:, 2]) & (ff[:, 0] != ff[:, 2])]
+        ff = ff[np.sort(np.unique(np.sort(ff, axis=1), axis=0, return_index=True)[1])]   # as step 3 will
+        centres = first[np.flatnonzero(merging)]
+        bad = _non_manifold_at(ff, centres, n)
+        if not len(bad):
+            break
+        merging[group[bad]] = False
+    kept = int(np.sum(used & ~merging[group] & (n_used[group] >= 2)))
+    return target, kept
+
+
+def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple[Mesh, RepairReport]:
+    """Remove what breaks intrinsic metrics, never what a valid mesh needs; keep the map to
+    the input vertices.
+
+    In order:
+
+    1. merge vertices with identical coordinates where the merge keeps the surface manifold
+       around them (the two sides of a seam, corners of a polygon soup, copies no face uses);
+       coincident vertices on separate sheets -- a fold where a closed surface touches itself,
+       two parts meeting at a point -- stay apart, so a closed manifold mesh is never changed;
+    2. drop faces with a repeated vertex or zero area;
+    3. drop repeated faces (the same three vertices, either orientation), keeping the first;
+    4. drop vertices no face uses any more.
+
+    Every vertex left is in a face of positive area. The result's ``input_ids`` still name
+    the vertices of ``mesh``'s input (a merged vertex keeps the smallest input id of those that
+    faces use), and its :attr:`~PointCloud.file_index` gives for every input vertex the vertex
+    that stands for it: itself, the vertex it was merged into, or -1 where it was dropped.
 
     Parameters
     ----------
@@ -528,24 +697,27 @@ def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple
         ``mesh`` itself when nothing needed repair.
     report : RepairReport
     """
-    v, f, ids = mesh.vertices, mesh.faces, mesh.input_ids
+    v, f, ids, fidx = mesh.vertices, mesh.faces, mesh.input_ids, mesh.file_index
     where = f" in {source}" if source else ""
     msgs: list[str] = []
+    n0 = len(v)
 
-    # 1. duplicate vertices (exactly equal coordinates)
-    uniq, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    n_dup = len(v) - len(uniq)
+    # 1. coincident vertices, where merging keeps the mesh manifold
+    target, n_kept = _merge_targets(v, f)
+    stays = target == np.arange(n0)
+    n_dup = int(n0 - stays.sum())
     if n_dup:
-        # keep the first occurrence, in original order
-        order = np.argsort(first)
-        rank = np.empty_like(order)
-        rank[order] = np.arange(len(order))
-        remap = rank[inverse]
-        v = v[np.sort(first)]
-        ids = ids[np.sort(first)]
+        new = np.cumsum(stays) - 1
+        remap = new[target]
         f = remap[f]
-        msgs.append(f"merged {n_dup} duplicate vertices{where}")
+        v, ids = v[stays], ids[stays]
+        fidx = _compose_file_index(fidx, remap)
+        msgs.append(f"merged {n_dup} duplicate vertices{where} into the vertices at the same "
+                    "coordinates (results give them their images)")
+    if n_kept:
+        logger.info("%d vertices%s share their coordinates with a vertex of another sheet of the "
+                    "surface (a fold or a touching point); kept apart, as the file has them",
+                    n_kept, where)
 
     # 2. degenerate faces: repeated index or zero area
     rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
@@ -565,28 +737,32 @@ def repair(mesh: Mesh, *, warn: bool = True, source: str | None = None) -> tuple
         n_dupf = len(f) - len(keep)
         if n_dupf:
             f = f[np.sort(keep)]
-            msgs.append(f"removed {n_dupf} repeated faces{where}")
+            msgs.append(f"removed {n_dupf} repeated faces{where} (the same three vertices; the "
+                        "first of each kept)")
     if len(f) == 0:
-        raise MeshError(f"no valid triangle left after removing degenerate faces{where}")
+        raise MeshError(f"no valid triangle left{where}: every face has zero area or a repeated "
+                        "vertex, so there is no surface to match")
 
     # 4. unreferenced vertices
     used = np.zeros(len(v), bool)
     used[f.ravel()] = True
     n_unref = int((~used).sum())
     if n_unref:
-        new = np.cumsum(used) - 1
+        new = np.where(used, np.cumsum(used) - 1, -1)
         f = new[f]
         v, ids = v[used], ids[used]
-        msgs.append(f"removed {n_unref} unreferenced vertices{where}")
+        fidx = _compose_file_index(fidx, new)
+        msgs.append(f"dropped {n_unref} unreferenced vertices{where} (no face of positive area "
+                    "uses them; per-vertex results give them -1 or NaN)")
 
-    report = RepairReport(n_deg, n_dupf, n_dup, n_unref, msgs)
+    report = RepairReport(n_deg, n_dupf, n_dup, n_unref, msgs, n_kept)
     if not report.changed:
         return mesh, report
     for m in msgs:
         logger.info(m)
         if warn:
             warnings.warn(m, GromovWarning, stacklevel=2)
-    return Mesh(v, f, input_ids=ids), report
+    return Mesh(v, f, input_ids=ids, file_index=fidx), report
 
 
 def component_areas(mesh: Mesh) -> np.ndarray:
@@ -630,7 +806,7 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     filled : Mesh
         The mesh with the fans; its first ``mesh.n_vertices`` vertices are ``mesh``'s, in
         order, with their ``input_ids``; the centroids follow, with ids past the largest
-        input id (they are not in the user's file).
+        input id and the file's vertex count (they are not in the user's file).
     n_filled : int
         Number of loops filled (0: ``filled`` is ``mesh`` itself).
     """
@@ -673,9 +849,10 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
         centres.append(V[loop].mean(axis=0))
     if not centres:
         return mesh, 0
-    first = int(mesh.input_ids.max()) + 1
+    first = max(int(mesh.input_ids.max()) + 1, mesh.n_file_vertices)   # never a file vertex's id
     filled = Mesh(np.vstack([V, centres]), np.vstack([F, *fans]),
-                  input_ids=np.r_[mesh.input_ids, first + np.arange(len(centres))])
+                  input_ids=np.r_[mesh.input_ids, first + np.arange(len(centres))],
+                  file_index=mesh.file_index)
     return filled, len(centres)
 
 

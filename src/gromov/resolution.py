@@ -310,7 +310,7 @@ def simplify(mesh: Mesh, n_vertices: int, *, aggressiveness: float = 7.0,
         raise ValueError(f"n_vertices must be at least 4, got {n_vertices}")
     if n_vertices >= mesh.n_vertices:
         ids = np.arange(mesh.n_vertices)
-        work = Mesh(mesh.vertices, mesh.faces, input_ids=mesh.input_ids)
+        work = Mesh(mesh.vertices, mesh.faces, input_ids=mesh.input_ids, file_index=mesh.file_index)
         return _locate(work, mesh, ids, ids)
 
     import fast_simplification

@@ -211,7 +211,7 @@ def _entry_arrays(s: ShapeMetric, rank_tau_scale: float | None) -> dict:
     inp, work = s.input, s.working
     out = {"format": np.int64(FORMAT), "kind": np.array("mesh" if s.has_faces else "cloud"),
            "metric": np.array(s.metric), "metric_options": np.array(_dumps(s.metric_options)),
-           "input_vertices": inp.vertices, "input_ids": inp.input_ids,
+           "input_vertices": inp.vertices, "input_ids": inp.input_ids, "file_index": inp.file_index,
            "working_vertices": s.mesh.vertices, "vertex_ids": work.vertex_ids,
            "source_nearest": work.source_nearest,
            "distances": s.distances, "diameter": np.float64(s.diameter), "finite": np.bool_(s.finite),
@@ -242,14 +242,15 @@ def _shape_from_arrays(a: dict) -> ShapeMetric:
     if int(a["format"]) != FORMAT:
         raise StoreError(f"entry format {int(a['format'])}, expected {FORMAT}")
     ids = a["input_ids"]
+    file_index = a["file_index"] if "file_index" in a else None   # entries written before it
     vid = _readonly(a["vertex_ids"])
     if str(a["kind"]) == "mesh":
-        inp = Mesh(a["input_vertices"], a["input_faces"], input_ids=ids)
+        inp = Mesh(a["input_vertices"], a["input_faces"], input_ids=ids, file_index=file_index)
         mesh = Mesh(a["working_vertices"], a["working_faces"], input_ids=ids[vid])
         working = WorkingMesh(mesh, inp, vid, *(_readonly(a[k]) for k in (
             "source_face", "source_bary", "source_nearest", "source_residual", "source_owner")))
     else:
-        inp = PointCloud(a["input_vertices"], input_ids=ids)
+        inp = PointCloud(a["input_vertices"], input_ids=ids, file_index=file_index)
         working = WorkingCloud(PointCloud(a["working_vertices"], input_ids=ids[vid]), inp, vid,
                                _readonly(a["source_nearest"]))
     s = ShapeMetric(inp, str(a["metric"]), metric_options=json.loads(str(a["metric_options"])),

@@ -212,7 +212,7 @@ def reflection_map(mesh: Mesh) -> np.ndarray:
     -------
     ndarray of int64, shape (n_vertices,)
         Input id (``mesh.input_ids``) of the mirror of the vertex with each input id;
-        ``-1`` for ids that are not vertices of ``mesh``.
+        ``-1`` for ids that are not vertices of ``mesh`` (:meth:`Mesh.per_file_vertex`).
     """
     from scipy.spatial import cKDTree
 
@@ -226,10 +226,7 @@ def reflection_map(mesh: Mesh) -> np.ndarray:
         d, idx = tree.query(r)
         if best is None or d.mean() < best[0]:
             best = (d.mean(), idx)
-    ids = mesh.input_ids
-    out = np.full(int(ids.max()) + 1, -1, dtype=np.int64)
-    out[ids] = ids[best[1]]
-    return out
+    return mesh.per_file_vertex(mesh.input_ids[best[1]])
 
 
 def _weld(work: Mesh, count: int, seed: int, join: str = "pinch"):

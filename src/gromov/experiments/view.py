@@ -73,9 +73,9 @@ def match_figure(x_mesh: Mesh, y_mesh: Mesh, result, *, titles: tuple[str, str] 
         raise ValueError("the page needs the dense maps: gromov.match(..., dense=True)")
     n_x, n_y = len(result.x_to_y_dense_vertex), len(result.y_to_x_dense_vertex)
     for name, m, n in (("x_mesh", x_mesh, n_x), ("y_mesh", y_mesh, n_y)):
-        if int(m.input_ids.max()) >= n:
-            raise ValueError(f"{name} has vertex id {int(m.input_ids.max())} but the result's dense "
-                             f"map covers {n} vertices: it was computed for other shapes")
+        if m.n_file_vertices != n:
+            raise ValueError(f"{name} comes from a file of {m.n_file_vertices} vertices but the "
+                             f"result's dense map covers {n}: it was computed for other shapes")
     if not (isinstance(titles, (tuple, list)) and len(titles) == 2):
         raise ValueError(f"titles must be a pair of names, got {titles!r}")
     tx, ty = (html.escape(str(t)) for t in titles)   # plotly renders text as HTML
@@ -94,8 +94,7 @@ def match_figure(x_mesh: Mesh, y_mesh: Mesh, result, *, titles: tuple[str, str] 
         raise ImportError("the interactive page needs plotly: pip install 'gromov[plot]'") from exc
 
     # colours of X by file id, carried to Y through Y's map to X, read back in Y's vertex order
-    by_id = np.full((n_x, 3), np.nan)
-    by_id[x_mesh.input_ids] = cx
+    by_id = x_mesh.per_file_vertex(cx)
     cy = result.transfer(by_id, method="barycentric", direction="x_to_y")[y_mesh.input_ids]
     cy = np.clip(np.where(np.isfinite(cy), cy, _GREY), 0.0, 1.0)
 
