@@ -323,3 +323,32 @@ def test_heat_distances_do_not_depend_on_the_blas_threads():
         with threadpool_limits(limits=limit, user_api="blas"):
             out.append(metric_solver(shape, "diffusion", kernel="heat").pairwise())
     assert out[0].tobytes() == out[1].tobytes() == out[2].tobytes()
+
+
+def test_heat_diffusion_on_a_single_triangle():
+    """All three eigenpairs of one triangle: the distances are finite, symmetric, zero only on
+    the diagonal, and an isosceles right triangle's two legs are equally long."""
+    tri = Mesh([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2]])
+    D = HeatDiffusionSolver(tri).pairwise()
+    assert D.shape == (3, 3) and np.isfinite(D).all() and np.allclose(D, D.T)
+    assert np.all(np.diag(D) == 0) and np.all(D[~np.eye(3, dtype=bool)] > 0)
+    assert D[0, 1] == pytest.approx(D[0, 2], rel=1e-9)
+
+
+def test_a_slit_is_not_filled():
+    """A closed sphere with a zero-area face removed has a slit (a boundary loop of three points
+    on a line): a fan across it would give its centre no area, so it stays open and every
+    vertex keeps positive area in the heat diffusion's mass matrix."""
+    from gromov.mesh import fill_holes
+
+    base = icosphere(2)
+    V, F = np.array(base.vertices), np.array(base.faces)
+    a, b, c = F[0]
+    V = np.vstack([V, 0.5 * (V[a] + V[b])])
+    v = len(V) - 1
+    F = np.vstack([F[1:], [[a, v, c], [v, b, c]]])   # the face across a-b keeps the long edge
+    m = Mesh(V, F)
+    assert len(m.boundary_loops) == 1 and len(m.boundary_loops[0]) == 3
+    assert fill_holes(m, 10.0) == (m, 0)
+    solver = metric_solver(m, "diffusion")
+    assert np.all(solver.mass.diagonal() > 0) and np.isfinite(solver.pairwise()).all()

@@ -294,6 +294,18 @@ def test_tosca_fixture_one_based():
     assert m.area == pytest.approx(1.5 + np.sqrt(3) / 2)
 
 
+@pytest.mark.parametrize("vert,tri", [("X.VERT", "X.TRI"), ("Y.Vert", "Y.tri"), ("Z.vert.gz", "Z.TRI")])
+def test_tosca_pair_found_whatever_the_case_of_its_extensions(tmp_path, vert, tri):
+    import gzip
+
+    data = (FIXTURES / "tetra.vert").read_bytes()
+    (tmp_path / vert).write_bytes(gzip.compress(data) if vert.endswith(".gz") else data)
+    (tmp_path / tri).write_bytes((FIXTURES / "tetra.tri").read_bytes())
+    for name in (vert, tri):
+        m = load_quiet(tmp_path / name)
+        assert m.n_vertices == 4 and m.n_faces == 4 and m.euler_characteristic == 2
+
+
 # --------------------------------------------------------------------------- repair on load
 def test_repair_on_load_keeps_file_ids(tmp_path):
     # vertex 4 duplicates vertex 1, vertex 2 is unused, face 2 is degenerate (repeated index)

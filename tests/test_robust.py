@@ -90,7 +90,9 @@ def test_touching_holes_simplify_to_a_surface(tmp_path, seed):
     """A 10k-vertex sphere with 41 holes, 15 pairs of which touch at vertices, stored with its
     boundary vertices duplicated: after the merge at loading, simplification to 3,000 keeps every
     working vertex in a face and the topology (Euler characteristic, components, the vertices
-    where holes touch)."""
+    where holes touch). Where the file splits a touching point into two whole fans, loading
+    keeps them apart (merging would make the surface non-manifold there), which can cut off a
+    piece: the working mesh then has the same pieces."""
     src = icosphere(5)
     faces = _disk_holes(src, 15, 11, 2.5 * src.mean_edge_length, seed, 0.0)
     _write_split_off(src.vertices, faces, tmp_path / "holes.off")
@@ -100,7 +102,7 @@ def test_touching_holes_simplify_to_a_surface(tmp_path, seed):
     assert abs(w.n_vertices - 3000) <= 60
     assert _working_vertices_in_no_face(w) == 0
     assert w.mesh.euler_characteristic == mesh.euler_characteristic
-    assert w.mesh.n_components == mesh.n_components == 1
+    assert w.mesh.n_components == mesh.n_components
     assert _bowties(w.mesh) == _bowties(mesh)
     assert len(w.mesh.boundary_loops) == len(mesh.boundary_loops)
     assert w.mesh.is_edge_manifold

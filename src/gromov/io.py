@@ -1138,11 +1138,21 @@ def _tosca_paths(path: Path, ext: str, gz: bool) -> tuple[Path, Path]:
     stem = path.name[:-len(suffix)] if path.name.lower().endswith(suffix) else \
         path.name.removesuffix(".gz").rpartition(".")[0] or path.name
     other = "tri" if ext == "vert" else "vert"
-    partner = path.with_name(f"{stem}.{other}" + (".gz" if gz else ""))
-    if not partner.exists():
-        alt = path.with_name(f"{stem}.{other}" + ("" if gz else ".gz"))
-        if alt.exists():
-            partner = alt
+    # the partner's extension in the case of this file's (cat0.VERT beside cat0.TRI), else any
+    # case, gzipped or not as this file, else the other way
+    own = path.name[len(stem) + 1:]
+    upper = own.removesuffix(".gz").removesuffix(".GZ").isupper()
+    want = [other.upper() if upper else other, other]
+    names = [f"{stem}.{e}{z}" for z in ((".gz", ".GZ", "") if gz else ("", ".gz", ".GZ")) for e in want]
+    partner = next((path.with_name(nm) for nm in names if path.with_name(nm).exists()), None)
+    if partner is None:
+        ok = {other, other + ".gz"}
+        try:
+            found = sorted(q for q in path.parent.iterdir() if q.name.startswith(stem + ".")
+                           and q.name[len(stem) + 1:].lower() in ok)
+        except OSError:
+            found = []
+        partner = found[0] if found else path.with_name(names[0])
     return (path, partner) if ext == "vert" else (partner, path)
 
 

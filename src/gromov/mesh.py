@@ -589,12 +589,13 @@ class RepairReport:
                     or self.unreferenced_vertices)
 
 
-def _non_manifold_at(faces: np.ndarray, centres: np.ndarray, n: int) -> np.ndarray:
-    """The vertices of ``centres`` around which ``faces`` (no face with a repeated vertex) do
-    not form one disk or half-disk: the link of such a vertex (the opposite edges of its
-    faces) has an edge twice (a repeated face), a vertex in more than two of its edges (an
-    edge of more than two faces) or more than one connected piece (two fans that meet only at
-    the vertex)."""
+def _fans(faces: np.ndarray, centres: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(pieces, crowded)`` for each vertex (``(n,)``, zero and False except at ``centres``):
+    the number of fans of ``faces`` around the vertex (the connected pieces of its link, the
+    opposite edges of its faces: one for a disk or half-disk, two where two disks meet at the
+    vertex), and whether one of its edges has more than two faces. ``faces`` have no repeated
+    vertex."""
+    pieces, crowded = np.zeros(n, np.int64), np.zeros(n, bool)
     is_centre = np.zeros(n, bool)
     is_centre[centres] = True
     w, a, b = [], [], []
@@ -604,33 +605,35 @@ def _non_manifold_at(faces: np.ndarray, centres: np.ndarray, n: int) -> np.ndarr
         a.append(faces[hit, (k + 1) % 3])
         b.append(faces[hit, (k + 2) % 3])
     w, a, b = np.concatenate(w), np.concatenate(a), np.concatenate(b)
-    bad = np.zeros(n, bool)
     if not len(w):
-        return np.zeros(0, np.int64)
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    edge = np.unique(np.c_[w, lo, hi], axis=0, return_counts=True)
-    bad[edge[0][edge[1] > 1, 0]] = True                       # a repeated face
+        return pieces, crowded
     ends, inv = np.unique(np.c_[np.r_[w, w], np.r_[a, b]], axis=0, return_inverse=True)
     inv = inv.reshape(-1)
-    bad[ends[np.bincount(inv) > 2, 0]] = True                  # an edge of three or more faces
+    crowded[ends[np.bincount(inv) > 2, 0]] = True              # an edge of three or more faces
     m = len(w)
     g = sp.coo_matrix((np.ones(m), (inv[:m], inv[m:])), shape=(len(ends), len(ends)))
     _, label = connected_components(g, directed=False)
-    pieces = np.unique(np.c_[ends[:, 0], label], axis=0)[:, 0]
-    bad[pieces[np.r_[False, pieces[1:] == pieces[:-1]]]] = True   # two pieces around one vertex
-    return np.flatnonzero(bad & is_centre)
+    np.add.at(pieces, np.unique(np.c_[ends[:, 0], label], axis=0)[:, 0], 1)
+    return pieces, crowded
+
+
+def _proper(f: np.ndarray) -> np.ndarray:
+    """The faces with three different vertices, each vertex set once (the first face kept)."""
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+    return f[np.sort(np.unique(np.sort(f, axis=1), axis=0, return_index=True)[1])]
 
 
 def _merge_targets(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, int]:
     """``(target, kept)``: the vertex each vertex merges into (itself if it stays) and how
     many vertices stay apart from another one at the same coordinates.
 
-    Vertices with identical coordinates are merged where the merge leaves a manifold surface
-    around the merged vertex: the two sides of a seam (a surface cut open along a curve, a
-    polygon soup), a vertex split into fans that together close a disk, and any copy that no
-    face uses. Where the merge would join separate sheets (a thin fold touching itself, two
-    parts meeting at a point: two disks at one vertex, or an edge of three faces once repeated
-    faces are removed), the vertices of that position stay apart, as the file has them.
+    Vertices with identical coordinates are merged where the merge leaves no edge of more
+    than two faces and joins their fans into fewer: the two sides of a seam (a surface cut
+    open along a curve, a polygon soup), a vertex split into pieces that together close a
+    disk (or meet as a bow-tie where two holes touch), and any copy that no face uses. Where
+    the merge would join separate sheets (a thin fold touching itself, two parts meeting at a
+    point: as many fans as before, or an edge of three faces once repeated faces are removed),
+    the vertices of that position stay apart, as the file has them.
     """
     n = len(v)
     _, group = np.unique(v, axis=0, return_inverse=True)
@@ -642,24 +645,23 @@ def _merge_targets(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, int]:
     used[f.ravel()] = True
     # representative of each group: its first vertex that a face uses (else its first vertex)
     order = np.lexsort((np.arange(n), ~used, group))
-    first = np.full(len(size), -1, np.int64)
-    starts = np.r_[0, np.cumsum(size)[:-1]]
-    first[:] = order[starts]
+    first = order[np.r_[0, np.cumsum(size)[:-1]]]
     shared = size[group] > 1
     n_used = np.bincount(group, weights=used, minlength=len(size))
-    merging = (n_used >= 2)                     # groups where faces use two or more copies
+    merging = n_used >= 2                       # groups where faces use two or more copies
+    before = np.bincount(group, weights=_fans(_proper(f), np.flatnonzero(shared & used), n)[0],
+                         minlength=len(size))
     while True:
         target = np.arange(n)
         copy = shared & (~used | merging[group])  # unused copies always go to the representative
         target[copy] = first[group[copy]]
-        ff = target[f]
-        ff = ff[(ff[:, 0] != ff[:, 1]) & (ff[:, 1] != ff[:, 2]) & (ff[:, 0] != ff[:, 2])]
-        ff = ff[np.sort(np.unique(np.sort(ff, axis=1), axis=0, return_index=True)[1])]   # as step 3 will
         centres = first[np.flatnonzero(merging)]
-        bad = _non_manifold_at(ff, centres, n)
-        if not len(bad):
+        pieces, crowded = _fans(_proper(target[f]), centres, n)
+        g = group[centres]
+        bad = crowded[centres] | ((pieces[centres] > 1) & (pieces[centres] >= before[g]))
+        if not bad.any():
             break
-        merging[group[bad]] = False
+        merging[g[bad]] = False
     kept = int(np.sum(used & ~merging[group] & (n_used[group] >= 2)))
     return target, kept
 
@@ -774,6 +776,12 @@ def component_areas(mesh: Mesh) -> np.ndarray:
     return np.bincount(labels, weights=mesh.face_areas, minlength=mesh.n_components)
 
 
+#: :func:`fill_holes` leaves a loop open when a face of its fan would have less area than
+#: this times the loop's squared perimeter (an equilateral triangle's fan faces have about
+#: 0.005): a slit, such as a removed zero-area face leaves, has no surface to fill.
+FAN_MIN_AREA = 1e-6
+
+
 def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     """Close every boundary loop shorter than ``max_perimeter`` by a fan of triangles.
 
@@ -782,7 +790,8 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
     boundary edge ``(l_i, l_{i+1})`` so that an oriented mesh stays oriented. Loops as long as
     ``max_perimeter`` or longer (real open ends of a scan, a partial shape) are left open, and
     so is the boundary of a triangle that hangs from the rest by one vertex (filling it would
-    add a closed bubble, not close a hole). Holes that touch at a vertex are filled each on its
+    add a closed bubble, not close a hole) and a slit, a loop whose fan would have a face of
+    (almost) no area (:data:`FAN_MIN_AREA`): its vertices would get no area of their own. Holes that touch at a vertex are filled each on its
     own (:attr:`Mesh.boundary_loops` gives each its own loop).
 
     Small holes are usually acquisition noise: the surface was there and was not captured.
@@ -840,13 +849,20 @@ def fill_holes(mesh: Mesh, max_perimeter) -> tuple[Mesh, int]:
         if len(loop) == 3 and any(set(F[f].tolist()) == set(loop.tolist())
                                   for f in incident[indptr[loop[0]]:indptr[loop[0] + 1]]):
             continue
-        if np.linalg.norm(V[nxt] - V[loop], axis=1).sum() >= bound[labels[loop[0]]]:
+        perimeter = np.linalg.norm(V[nxt] - V[loop], axis=1).sum()
+        if perimeter >= bound[labels[loop[0]]]:
+            continue
+        centre = V[loop].mean(axis=0)
+        # a slit (a loop of no area, e.g. where a zero-area face was removed) is left open: a
+        # fan across it would have faces of no area, vertices with no area
+        fan_areas = 0.5 * np.linalg.norm(np.cross(V[loop] - centre, V[nxt] - centre), axis=1)
+        if fan_areas.min() <= FAN_MIN_AREA * perimeter ** 2:
             continue
         c = np.full(len(loop), n + len(centres))
         # each fan face runs against the face on the other side of its loop edge
         along = np.array([int(k) in directed for k in loop * n + nxt])
         fans.append(np.where(along[:, None], np.c_[nxt, loop, c], np.c_[loop, nxt, c]))
-        centres.append(V[loop].mean(axis=0))
+        centres.append(centre)
     if not centres:
         return mesh, 0
     first = max(int(mesh.input_ids.max()) + 1, mesh.n_file_vertices)   # never a file vertex's id

@@ -630,8 +630,9 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         scale = 2.0 / (area * (1.0 - np.exp(-8.0 * np.pi * self.tau)))
         lam_star = np.log(2.0 * max_inv_mass / (self.rtol * scale)) / (2.0 * t)
         k = int(min(n - 2, max(32, np.ceil(1.15 * lam_star * area / (4.0 * np.pi)) + 8)))
+        dense = n < 16   # a few vertices (one triangle): all eigenpairs, no truncation bound
         while True:
-            if k > n // 3:
+            if dense or k > n // 3:
                 lam, phi = _dense_generalized(self.stiffness, self.mass)
                 lam = np.maximum(lam, 0.0)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
@@ -641,7 +642,11 @@ class HeatDiffusionSolver(_SpectralDiffusion):
             lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
             psi = phi * np.exp(-lam * t)
             # the bound with the measured mean d^2 decides
-            lam_star = np.log(2.0 * max_inv_mass / (self.rtol * self._mean_sq(psi))) / (2.0 * t)
+            mean_sq = self._mean_sq(psi)
+            if not mean_sq > 0:   # only constant eigenvectors so far: take them all
+                dense = True
+                continue
+            lam_star = np.log(2.0 * max_inv_mass / (self.rtol * mean_sq)) / (2.0 * t)
             if lam[-1] >= lam_star or k >= n - 2:
                 break
             k = int(np.ceil(k * lam_star / max(lam[-1], 1e-300) * 1.1)) + 8  # Weyl: lambda_k ~ k
@@ -788,8 +793,12 @@ def _laplacian(shape, laplacian: str, what: str, neighbors: int = POINT_CLOUD_NE
         stiffness, mass = sp.csr_matrix(lap), sp.csr_matrix(m)
         area = float(mass.diagonal().sum())
     if not (np.all(mass.diagonal() > 0) and np.isfinite(area)):
-        raise MetricError(f"{what} needs positive vertex areas: every vertex must be in a triangle of "
-                          "positive area (gromov.load and gromov.repair remove the others)")
+        zero = np.flatnonzero(~(mass.diagonal() > 0))
+        which = (f"{len(zero)} of its {mass.shape[0]} vertices (first: vertex {zero[0]}) are in no "
+                 "triangle of positive area" if len(zero) else "its area is not finite")
+        raise MetricError(f"{what} needs positive vertex areas, and {which}: a mesh built from arrays "
+                          "is made valid by gromov.repair(mesh), which drops such vertices and keeps "
+                          "their file numbering")
     return laplacian, stiffness, mass, float(area)
 
 
