@@ -1,8 +1,11 @@
 """Pairwise GH matrices: symmetric, zero diagonal, parallel equals serial, separates classes."""
 
+import json
+
 import numpy as np
 import pytest
 
+import gromov
 from gromov import Mesh
 from gromov.experiments.pairwise import gh_matrix
 from gromov.experiments.recognition import equal_error_rate
@@ -210,3 +213,61 @@ def test_main_names_import_from_the_experiments_package():
     assert gh_matrix is pairwise.gh_matrix and roc is ex.recognition.roc
     assert module.__name__ == "gromov.experiments.reproduce"   # the submodule, not the function
     assert "gh_matrix" in dir(ex)
+
+
+def _collection(tmp_path):
+    """Two classes of two isometric sheets (flat and rolled) and a file with no surface."""
+    files = [tmp_path / "sheet0.off", tmp_path / "long0.off", tmp_path / "sheet1.off",
+             tmp_path / "long1.off"]
+    for f, m in zip(files, (grid(21, 11), grid(31, 11, width=2 * np.pi), rolled_grid(21, 11),
+                            rolled_grid(31, 11, width=2 * np.pi))):
+        gromov.save(m, f)
+    bad = tmp_path / "flat2.off"   # every face has zero area
+    bad.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n")
+    return [str(f) for f in files], str(bad)
+
+
+def test_pairwise_goes_on_without_a_shape_it_cannot_use(tmp_path, capsys):
+    """The unusable file is named on one line with its reason and left out of every result;
+    the others are matched as without it; the exit status is 0, or 1 with --strict."""
+    from gromov.cli import main
+
+    files, bad = _collection(tmp_path)
+    argv = ["pairwise", files[0], files[1], bad, files[2], files[3], "--metric", "geodesic",
+            "--samples", "20", "--jobs", "1", "--labels-from-names", "--json"]
+    csv_path = tmp_path / "d.csv"
+    assert main([*argv, "--out", str(csv_path)]) == 0
+    out, err = capsys.readouterr()
+    res = json.loads(out)
+    skipped = [line for line in err.splitlines() if line.startswith("gromov: skipped")]
+    assert skipped == [f"gromov: skipped {bad}: " + res["skipped"][bad]]
+    assert "no valid triangle" in res["skipped"][bad]
+    assert res["files"] == files and res["labels"] == ["sheet", "long", "sheet", "long"]
+    assert res["nearest"] == [files[2], files[3], files[0], files[1]] and res["eer"] == 0.0
+    assert csv_path.read_text().splitlines()[0].split(",")[1:] == files
+    assert main([*argv, "--strict"]) == 1
+    assert bad in capsys.readouterr().err
+
+
+def test_pairwise_leaves_out_a_shape_whose_metric_fails(tmp_path, capsys, monkeypatch):
+    """A shape that loads but whose metric cannot be computed is found, named and left out."""
+    import gromov.experiments.pairwise as pw
+    from gromov.cli import main
+    from gromov.errors import MetricError
+
+    files, _ = _collection(tmp_path)
+    real = pw._prepare_one
+
+    def failing(s, *a):
+        if s.input.n_vertices == 31 * 11:   # the long sheets
+            raise MetricError("no metric on this one")
+        return real(s, *a)
+
+    monkeypatch.setattr(pw, "_prepare_one", failing)
+    assert main(["pairwise", *files, "--metric", "geodesic", "--samples", "20", "--jobs", "1",
+                 "--json"]) == 0
+    out, err = capsys.readouterr()
+    res = json.loads(out)
+    assert res["files"] == [files[0], files[2]] and res["nearest"] == [files[2], files[0]]
+    assert res["skipped"] == {files[1]: "no metric on this one", files[3]: "no metric on this one"}
+    assert err.count("gromov: skipped") == 2

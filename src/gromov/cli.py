@@ -595,14 +595,15 @@ def _close_store(store, handler) -> None:
         log.propagate = True
 
 
-def _stored_shapes(store, args, options: dict, progress: bool) -> list:
+def _stored_shapes(store, args, options: dict, progress: bool, files: list | None = None) -> list:
     """Each file's ShapeMetric from the store (loaded and computed only when not stored yet),
-    checked as ``pairwise`` checks loaded files."""
+    checked as ``pairwise`` checks loaded files. ``files``: these instead of ``args.files``."""
+    files = list(args.files if files is None else files)
     if getattr(args, "neighbors", None) is not None:   # (a user error found before any metric)
-        _check_neighbors(args, [_load(f, args) for f in args.files])
-    shapes = store.shapes(args.files, args.metric, resolution=args.resolution, metric_options=options,
+        _check_neighbors(args, [_load(f, args) for f in files])
+    shapes = store.shapes(files, args.metric, resolution=args.resolution, metric_options=options,
                           rank_tau_scale=args.rank_tau_scale, progress=progress)
-    for path, s in zip(args.files, shapes):
+    for path, s in zip(files, shapes):
         if getattr(args, "samples", 0) > s.mesh.n_vertices:
             raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} vertices "
                              f"of the working set of {path}")
@@ -659,7 +660,6 @@ def cmd_search(args) -> int:
 
 
 def cmd_pairwise(args) -> int:
-    from .experiments.pairwise import available_cpus, gh_matrix
     from .experiments.recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, roc
 
     n = len(args.files)
@@ -705,54 +705,47 @@ def cmd_pairwise(args) -> int:
             raise _UserError(f"{'--dask' if args.dask is not None else '--scheduler'} needs dask.distributed: "
                              "pip install 'gromov[dask]'")
     t = time.perf_counter()
+    # a shape that cannot be used is left out, with its reason; the others go on
+    loaded, unusable = _usable_shapes(args)
+    files = [f for f in args.files if f not in unusable]
+    if len(files) < 2:
+        raise _UserError(f"pairwise needs at least two usable shapes; {len(files)} of {n} can be used ("
+                         + "; ".join(f"{f}: {why}" for f, why in unusable.items()) + ")")
+    _check_neighbors(args, list(loaded.values()))
+    options = _metric_options(args)
     store, handler = _open_store(args)
     try:
-        if store is None:
-            shapes = []
-            for path in args.files:   # meshes or point clouds (their images are then points)
-                shape = _load(path, args)
-                work = min(args.resolution, shape.n_vertices)
-                if args.samples > work:
-                    raise _UserError(f"--samples {args.samples} is more than the {work} vertices of the "
-                                     f"working set of {path}")
-                _check_pieces(args, path, shape)   # simplification keeps the components
-                shapes.append(shape)
-            _check_neighbors(args, shapes)
-            if not dask:   # (with Dask the matrices are on the workers)
-                _check_memory([min(args.resolution, s.n_vertices) for s in shapes],
-                              f"--resolution {args.resolution}")
-            options = _metric_options(args)
-            t = time.perf_counter()
-        elif dask:   # each worker reads its shapes from the store, or computes and adds them
-            options = _metric_options(args)
-            if getattr(args, "neighbors", None) is not None:
-                _check_neighbors(args, [_load(f, args) for f in args.files])
-            shapes = list(args.files)
-        else:   # read from the store; loaded and computed only when not stored yet
-            options = _metric_options(args)
-            shapes = _stored_shapes(store, args, options, progress=not (args.quiet or args.json))
-        if dask:
-            from ._dask import client_for
-
-            cluster = client_for(scheduler=args.scheduler, n_workers=args.dask)
-        else:
-            import contextlib
-
-            cluster = contextlib.nullcontext()
-        with cluster as client:
-            r = gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
-                          metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
-                          progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
-                          rank_residual=args.rank_residual, store=store, client=client, k=args.k)
+        if store is None and not dask:   # (with Dask the matrices are on the workers)
+            _check_memory([min(args.resolution, loaded[f].n_vertices) for f in files],
+                          f"--resolution {args.resolution}")
+        t = time.perf_counter()
+        try:
+            r = _pairwise_matrix(args, files, loaded, store, options, dask)
+        except GromovError:   # a shape's metric cannot be computed: find which, go on without them
+            failed = _failing_shapes(args, files, loaded, options)
+            if not failed:
+                raise
+            unusable.update(failed)
+            files = [f for f in files if f not in failed]
+            if len(files) < 2:
+                raise _UserError(f"pairwise needs at least two usable shapes; {len(files)} of {n} can be "
+                                 "used (" + "; ".join(f"{f}: {why}" for f, why in unusable.items()) + ")")
+            r = _pairwise_matrix(args, files, loaded, store, options, dask)
     finally:
         _close_store(store, handler)
     seconds = time.perf_counter() - t
+    for f, why in unusable.items():
+        print(f"gromov: skipped {f}: {why}", file=sys.stderr)
+    if unusable:
+        keep = [i for i, f in enumerate(args.files) if f not in unusable]
+        labels = None if labels is None else [labels[i] for i in keep]
+        n = len(files)
     D = r.trimmed if args.rank_by == "trimmed" else r.relative
     what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
     # (with -k the pairs not matched are NaN: never nearest)
     nearest = np.argmin(np.where(np.isnan(D), np.inf, D) + np.diag(np.full(n, np.inf)), axis=1)
-    names = list(args.files)
-    result = {"files": names, "metric": args.metric, "metric_options": options,
+    names = list(files)
+    result = {"files": names, "skipped": unusable, "metric": args.metric, "metric_options": options,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
               "ranked_by": args.rank_by, "rank_tau_scale": r.rank_tau_scale,
               "rank_residual": r.rank_residual,
@@ -803,12 +796,14 @@ def cmd_pairwise(args) -> int:
         plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
                  args.mds, names=_short_names(names),
                  title=f"MDS of {n} shapes, {args.metric}, {what}")
+    status = 1 if unusable and args.strict else 0
     if args.json:
         print(_dumps(result))
-        return 0
+        return status
     pairs = (f"{n * (n - 1) // 2} pairs" if args.k is None else
              f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)")
-    print(f"{n} shapes, {pairs}, {args.metric} metric, {args.samples} samples per "
+    left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
+    print(f"{n} shapes{left_out}, {pairs}, {args.metric} metric, {args.samples} samples per "
           f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
     if store is not None:
         print(f"  store {args.store}: {store.reused} of {n} shapes and {store.pairs_reused} of "
@@ -837,7 +832,72 @@ def cmd_pairwise(args) -> int:
             print(f"  at its threshold: {errors_text(result['errors_at_eer'])}")
     for f in outs:
         print(f"  wrote {f}")
-    return 0
+    return status
+
+
+def _one_line(exc: BaseException) -> str:
+    """An error's message on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _usable_shapes(args) -> tuple[dict, dict]:
+    """``({file: shape}, {file: why not})``: each file of a collection loaded and checked as
+    ``pairwise`` needs it (read, enough working vertices for ``--samples``, finite distances
+    between its pieces); a file that fails is named with its reason and the others go on."""
+    loaded, unusable = {}, {}
+    for path in args.files:   # meshes or point clouds (their images are then points)
+        try:
+            shape = _load(path, args)
+            work = min(args.resolution, shape.n_vertices)
+            if args.samples > work:
+                raise _UserError(f"--samples {args.samples} is more than the {work} vertices of its "
+                                 "working set")
+            _check_pieces(args, path, shape)   # simplification keeps the components
+        except (GromovError, _UserError, OSError) as exc:
+            unusable[path] = _one_line(exc).removeprefix(f"{path}: ")
+            continue
+        loaded[path] = shape
+    return loaded, unusable
+
+
+def _pairwise_matrix(args, files: list, loaded: dict, store, options: dict, dask: bool):
+    """:func:`gromov.experiments.gh_matrix` of the usable files, as ``pairwise``'s options say."""
+    from .experiments.pairwise import available_cpus, gh_matrix
+
+    if store is None and not dask:
+        shapes = [loaded[f] for f in files]
+    elif dask:   # each worker reads its shapes from the store, or computes and adds them
+        shapes = list(files)
+    else:   # read from the store; loaded and computed only when not stored yet
+        shapes = _stored_shapes(store, args, options, progress=not (args.quiet or args.json), files=files)
+    if dask:
+        from ._dask import client_for
+
+        cluster = client_for(scheduler=args.scheduler, n_workers=args.dask)
+    else:
+        import contextlib
+
+        cluster = contextlib.nullcontext()
+    with cluster as client:
+        return gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                         metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
+                         progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
+                         rank_residual=args.rank_residual, store=store, client=client, k=args.k)
+
+
+def _failing_shapes(args, files: list, loaded: dict, options: dict) -> dict:
+    """``{file: why}`` for the files whose metric cannot be computed, each tried on its own."""
+    from .experiments.pairwise import prepare
+
+    failed = {}
+    for f in files:
+        try:
+            prepare([loaded[f]], args.metric, n_samples=args.samples, seed=args.seed,
+                    resolution=args.resolution, metric_options=options,
+                    rank_tau_scale=args.rank_tau_scale)
+        except GromovError as exc:
+            failed[f] = _one_line(exc).removeprefix(f"{f}: ")
+    return failed
 
 
 def _write_csv(path: Path, names: list[str], matrix: np.ndarray, what: str) -> None:
@@ -1215,6 +1275,9 @@ def _pairwise_parser(sub) -> None:
     q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
     q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--strict", action="store_true",
+                   help="exit with status 1 when a shape cannot be used (by default it is named "
+                        "with its reason, left out, and the others are matched)")
     workers = q.add_mutually_exclusive_group()
     workers.add_argument("--jobs", type=_positive_int, default=None,
                          help="worker processes for the pairs (default: the CPUs available); "
