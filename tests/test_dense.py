@@ -276,3 +276,57 @@ def test_zoomout_on_exact_maps_is_a_fixed_point():
     s = ShapeMetric(bumpy_torus(), "diffusion", resolution=None)
     ids = np.arange(s.mesh.n_vertices)
     np.testing.assert_array_equal(zoomout(s, s, ids), ids)
+
+
+def test_input_zoomout_keeps_the_identity_and_brings_back_a_shaken_map():
+    """On a shape and itself (input finer than the working mesh) the identity is a fixed point,
+    and each vertex moved to a random neighbour comes home."""
+    from gromov.dense import input_zoomout, ring_neighbourhoods
+    from gromov.gh import ShapeMetric
+
+    s = ShapeMetric(bumpy_torus(), "diffusion", resolution=300)
+    n = s.input.n_vertices
+    assert s.mesh.n_vertices < n
+    ids = np.arange(n)
+    np.testing.assert_array_equal(input_zoomout(s, s, ids, k=40), ids)
+    ptr, nbr = ring_neighbourhoods(s.input, 1)
+    rng = np.random.default_rng(3)
+    shaken = nbr[ptr[:-1] + rng.integers(0, np.diff(ptr))]
+    assert np.mean(shaken == ids) < 0.3
+    back = input_zoomout(s, s, shaken, k=40)
+    assert np.mean(back == ids) > 0.95
+
+
+def test_ring_neighbourhoods_grow_by_one_edge_per_ring():
+    from gromov.dense import ring_neighbourhoods
+
+    m = grid(5, 5)   # vertex 12 is the centre of a 5 x 5 sheet, its diagonal neighbours
+    ptr, ids = ring_neighbourhoods(m, 0)
+    np.testing.assert_array_equal(ids, np.arange(m.n_vertices))
+    ptr, ids = ring_neighbourhoods(m, 1)
+    one = set(ids[ptr[12]:ptr[13]])
+    assert one == {12} | set(m.adjacency[12].indices)
+    ptr, ids = ring_neighbourhoods(m, 2)
+    two = set(ids[ptr[12]:ptr[13]])
+    assert one < two and two == set().union(*(set(m.adjacency[v].indices) | {v} for v in one))
+    with pytest.raises(ValueError, match="rings must be non-negative"):
+        ring_neighbourhoods(m, -1)
+
+
+def test_the_input_refinement_maps_a_permuted_finer_copy():
+    """Matched at a working resolution below the input's, the refined map is still the
+    permutation (the refinement reads no vertex order)."""
+    x = bumpy_torus()
+    y, perm = permutation_of(x, 5)
+    r = gromov.match(x, y, "diffusion", n_samples=30, resolution=300, dense=True)
+    inv = np.argsort(perm)
+    assert np.mean(r.x_to_y_dense_vertex == inv) > 0.9
+    assert np.mean(r.y_to_x_dense_vertex == perm) > 0.9
+    e = dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, y, inv)
+    assert e.mean < 0.01
+    with pytest.raises(ValueError, match="refine must be one of"):
+        from gromov.dense import dense_maps
+        from gromov.gh import ShapeMetric
+
+        s = ShapeMetric(x, "diffusion", resolution=300)
+        dense_maps(s, s, (np.arange(3), np.arange(3)), (np.arange(3), np.arange(3)), refine="spectral")

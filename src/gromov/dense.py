@@ -24,8 +24,10 @@ samples with their images, Y's samples with theirs). Two refinements make it pre
 Input vertices are then carried through the working meshes: an input vertex of X lies on a
 working face; its three corners' images, weighted by its barycentric coordinates, give a
 point that is projected onto Y's input mesh near those images (never onto another sheet that
-passes closer in space). The measurements that chose these settings are in
-``docs/design/dense.md``.
+passes closer in space). By default the map is then refined at the input resolution
+(:func:`input_zoomout`): ZoomOut's spectral step on the input meshes' own Laplace-Beltrami
+eigenfunctions, each image searched only near where the robust map put it. The measurements
+that chose these settings are in ``docs/design/dense.md``.
 """
 
 from __future__ import annotations
@@ -34,22 +36,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numba import njit
+
+from ._arrays import readonly
 from ._project import project_among
 from .resolution import gather
 
-__all__ = ["DenseMap", "dense_maps", "anchored_map", "landmark_distances", "zoomout", "DENSE_TAU_SCALE",
-           "DENSE_KEEP", "DENSE_ROUNDS", "DENSE_REFINE"]
+__all__ = ["DenseMap", "dense_maps", "anchored_map", "landmark_distances", "zoomout", "input_zoomout",
+           "laplace_beltrami_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
+           "DENSE_REFINE", "REFINEMENTS"]
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
 #: Fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
-#: Refinement of the placed map (:func:`dense_maps`' ``refine``): "zoomout" or None. ZoomOut
-#: by default: more precise on every pair measured, TOPKIDS and TOSCA (docs/design/dense.md).
-DENSE_REFINE: str | None = "zoomout"
-#: ZoomOut refinement: eigenfunctions from, to, step.
+#: Refinements of the placed map (:func:`dense_maps`' ``refine``): "input" (:func:`input_zoomout`
+#: on the input meshes), "zoomout" (:func:`zoomout` on the working meshes) or None.
+REFINEMENTS = ("input", "zoomout", None)
+#: The default refinement: "input", the most precise on the pairs measured (docs/design/dense.md).
+DENSE_REFINE: str | None = "input"
+#: ZoomOut refinement on the working meshes: eigenfunctions from, to, step.
 ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
+#: Refinement on the input meshes: eigenfunctions, iterations, and the rings of the input mesh
+#: around the current image that each iteration searches.
+INPUT_K, INPUT_ITER, INPUT_RINGS = 100, 5, 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,10 +219,118 @@ def zoomout(sx, sy, T: np.ndarray, *, k_start: int = ZOOMOUT_START, k_end: int =
     return np.asarray(T, dtype=np.int64)
 
 
+def laplace_beltrami_basis(mesh, k: int) -> tuple[np.ndarray, np.ndarray]:
+    r"""``(phi (n, k), mass (n,))``: the first ``k`` eigenfunctions of the cotangent Laplacian of
+    ``mesh`` (:func:`gromov.metrics.diffusion.cotan_laplacian`), :math:`L\phi = \lambda M\phi`,
+    M-orthonormal, by increasing eigenvalue, and the lumped vertex masses.
+
+    Shift-invert Lanczos (ARPACK) about :math:`-10^{-2}/\text{area}`, just below the spectrum
+    (as pyFM does on area-normalised meshes), from a fixed start vector: the same eigenpairs on
+    every run. Fewer than ``k`` for a mesh of ``k + 2`` vertices or fewer.
+    """
+    from .metrics.diffusion import _eigsh_top, cotan_laplacian
+
+    L, M = cotan_laplacian(mesh)
+    k = int(min(k, mesh.n_vertices - 2))
+    lam, phi = _eigsh_top(L, k, M=M, sigma=-1e-2 / max(mesh.area, 1e-300))
+    return np.ascontiguousarray(phi[:, np.argsort(lam)]), np.asarray(M.diagonal())
+
+
+def _input_basis(s, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`laplace_beltrami_basis` of ``s``'s input mesh, computed once per shape."""
+    cached = s._input_basis
+    if cached is None or cached[0].shape[1] < min(k, s.input.n_vertices - 2):
+        s._input_basis = laplace_beltrami_basis(s.input, k)
+    return s._input_basis[0][:, :k], s._input_basis[1]
+
+
+def ring_neighbourhoods(mesh, rings: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(indptr, ids)``: the vertices within ``rings`` edges of each vertex, itself
+    included, sorted."""
+    import scipy.sparse as sp
+
+    if rings < 0:
+        raise ValueError(f"rings must be non-negative, got {rings!r}")
+    step = (mesh.adjacency + sp.identity(mesh.n_vertices, format="csr")).astype(bool).tocsr()
+    near = sp.identity(mesh.n_vertices, format="csr", dtype=bool)
+    for _ in range(int(rings)):
+        near = (near @ step).astype(bool)
+    near = near.tocsr()
+    near.sort_indices()
+    return near.indptr.astype(np.int64), near.indices.astype(np.int64)
+
+
+@njit(cache=True)
+def _nearest_in_rings(a, b, T, ptr, ids):
+    """For each row v of ``a``, the row c of ``b`` nearest to it (squared Euclidean) among
+    ``ids[ptr[T[v]]:ptr[T[v] + 1]]``; the first of equal ones."""
+    n, k = a.shape
+    out = np.empty(n, np.int64)
+    for v in range(n):
+        t = T[v]
+        best = np.inf
+        arg = t
+        for j in range(ptr[t], ptr[t + 1]):
+            c = ids[j]
+            d = 0.0
+            for q in range(k):
+                e = a[v, q] - b[c, q]
+                d += e * e
+            if d < best:
+                best = d
+                arg = c
+        out[v] = arg
+    return out
+
+
+def input_zoomout(sx, sy, T: np.ndarray, *, k: int = INPUT_K, n_iter: int = INPUT_ITER,
+                  rings: int = INPUT_RINGS) -> np.ndarray:
+    r"""Refine a vertex map between the *input* meshes of X and Y spectrally, locally.
+
+    ZoomOut's step (Melzi et al., SIGGRAPH Asia 2019) on the first ``k`` Laplace-Beltrami
+    eigenfunctions :math:`\Phi` of each input mesh (:func:`laplace_beltrami_basis`), ``n_iter``
+    times: the functional map :math:`C = \Phi_X^\top M_X \Phi_Y[T]`, then
+
+    .. math:: T(v) = \arg\min_{w \in N(T(v))} \lVert \Phi_X(v)\, C - \Phi_Y(w) \rVert,
+
+    where :math:`N(u)` is the ``rings``-ring of u on Y's input mesh. Searching near the current
+    image, not over all of Y, keeps the map in the basin the robust placement found (no jump to
+    a symmetric part, nor across a change of topology) and costs ``O(n k)`` per iteration.
+
+    Parameters
+    ----------
+    sx, sy : ShapeMetric
+        Both meshes.
+    T : ndarray (n_X,) of int
+        Vertex of Y's input mesh (index, not file id) for each vertex of X's input mesh.
+    k, n_iter, rings : int, defaults INPUT_K, INPUT_ITER, INPUT_RINGS
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+    """
+    T = np.asarray(T, dtype=np.int64)
+    if T.shape != (sx.input.n_vertices,):
+        raise ValueError(f"T must have one vertex of Y per input vertex of X, shape "
+                         f"({sx.input.n_vertices},), got {T.shape}")
+    phx, mx = _input_basis(sx, k)
+    phy, _ = _input_basis(sy, k)
+    k = min(phx.shape[1], phy.shape[1])
+    phx, phy = phx[:, :k], np.ascontiguousarray(phy[:, :k])
+    if sy._input_rings is None or sy._input_rings[0] != rings:
+        sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
+    ptr, ids = sy._input_rings[1]
+    for _ in range(int(n_iter)):
+        C = phx.T @ (mx[:, None] * phy[T])
+        T = _nearest_in_rings(*(readonly(a) for a in (np.ascontiguousarray(phx @ C), phy, T, ptr, ids)))
+    return T
+
+
 def _input_images(sx, sy, T: np.ndarray):
     """``(face, bary, vertex)`` on Y's input mesh of every input vertex of X, from the working
     map ``T``: each input vertex's working face corners' images, weighted by its barycentric
-    coordinates, projected onto Y's input near those images."""
+    coordinates, projected onto Y's input near those images. ``vertex`` indexes Y's input
+    mesh (not its file ids)."""
     wx, wy = sx.working, sy.working
     if sx.has_faces:
         corners = T[sx.mesh.faces[wx.source_face]]            # (n_in, 3) images of the corners
@@ -222,7 +341,7 @@ def _input_images(sx, sy, T: np.ndarray):
     if not sy.has_faces:
         best = corners[np.arange(len(corners)), np.argmax(w, axis=1)]
         n = len(best)
-        return np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), wy.to_input_ids(best)
+        return np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), wy.to_source(best)
     pos = np.einsum("kc,kcd->kd", w, sy.mesh.vertices[corners])
     own_ptr, own_ids = sy.owned
     # the nearest of the input vertices the three images own (the point lies between them),
@@ -233,8 +352,16 @@ def _input_images(sx, sy, T: np.ndarray):
     first = _segment_argmin(d2, ptr)
     near = ids[first]
     face, bary, _ = project_among(pos, sy.input, np.arange(len(near) + 1), near)
-    vertex = sy.input.faces[face, np.argmax(bary, axis=1)]
-    return face, bary, sy.input.input_ids[vertex]
+    return face, bary, sy.input.faces[face, np.argmax(bary, axis=1)]
+
+
+def _at_vertices(mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(face, bary)`` of vertices ``v`` of ``mesh`` as surface points: the first face
+    around each, with the unit weight on its corner."""
+    indptr, face_ids = mesh.vertex_faces
+    face = face_ids[indptr[v]]
+    bary = (mesh.faces[face] == v[:, None]).astype(np.float64)
+    return face, bary
 
 
 def _segment_argmin(values: np.ndarray, ptr: np.ndarray) -> np.ndarray:
@@ -272,21 +399,30 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         ``(P, images of Q)``, on Y ``(images of P, Q)``.
     tau_scale, keep, rounds
         :func:`landmark_distances`, :func:`anchored_map`.
-    refine : {"zoomout", None}, default DENSE_REFINE
-        Refine each placed working-level map by :func:`zoomout` (meshes only).
+    refine : {"input", "zoomout", None}, default DENSE_REFINE
+        Refine each placed map by :func:`input_zoomout` on the input meshes ("input"), or by
+        :func:`zoomout` on the working meshes ("zoomout"); meshes only (a point cloud's map is
+        the placed one).
 
     Returns
     -------
     (DenseMap, DenseMap)
         X -> Y indexed by X's file ids, Y -> X indexed by Y's.
     """
+    if refine not in REFINEMENTS:
+        raise ValueError(f"refine must be one of {REFINEMENTS}, got {refine!r}")
     ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
     ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
     t_xy = anchored_map(ax, ay, keep=keep, rounds=rounds)
     t_yx = anchored_map(ay, ax, keep=keep, rounds=rounds)
-    if refine not in ("zoomout", None):
-        raise ValueError(f"refine must be 'zoomout' or None, got {refine!r}")
-    if refine == "zoomout" and sx.has_faces and sy.has_faces:
+    meshes = sx.has_faces and sy.has_faces
+    if refine == "zoomout" and meshes:
         t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)
-    return (_by_file_id(sx, *_input_images(sx, sy, t_xy)),
-            _by_file_id(sy, *_input_images(sy, sx, t_yx)))
+    maps = []
+    for a, b, t in ((sx, sy, t_xy), (sy, sx, t_yx)):
+        face, bary, vertex = _input_images(a, b, t)
+        if refine == "input" and meshes:
+            vertex = input_zoomout(a, b, vertex)
+            face, bary = _at_vertices(b.input, vertex)
+        maps.append(_by_file_id(a, face, bary, b.input.input_ids[vertex]))
+    return maps[0], maps[1]

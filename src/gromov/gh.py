@@ -146,6 +146,8 @@ class ShapeMetric:
         self._finite: bool | None = None
         self._owned = None
         self._lb_basis = None   # Laplace-Beltrami eigenpairs of the working mesh (gromov.dense)
+        self._input_basis = None   # ... and of the input mesh
+        self._input_rings = None   # (rings, CSR): each input vertex's neighbourhood (gromov.dense)
         self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
         self._curvature: np.ndarray | None = None
@@ -637,8 +639,10 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         the right map: :mod:`gromov.curvature`). "ignore": the lowest distortion found.
     search : SearchOptions, optional
         The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
-    dense : bool, "zoomout" or "placed", default False
-        Also map every input vertex (:mod:`gromov.dense`), refined by ZoomOut unless "placed".
+    dense : bool, "input", "zoomout" or "placed", default False
+        Also map every input vertex (:mod:`gromov.dense`). True or "input": placed from the
+        samples, then refined by ZoomOut on the input meshes; "zoomout": refined on the
+        working meshes instead; "placed": not refined.
 
     Returns
     -------
@@ -773,8 +777,8 @@ def _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residu
         raise ValueError(f"init must be 'greedy' or 'gw', got {init!r}")
     if orientation not in ("ignore", "prefer"):
         raise ValueError(f"orientation must be 'ignore' or 'prefer', got {orientation!r}")
-    if dense and dense not in (True, "zoomout", "placed"):
-        raise ValueError(f"dense must be True, False, 'zoomout' or 'placed', got {dense!r}")
+    if dense and dense not in (True, "input", "zoomout", "placed"):
+        raise ValueError(f"dense must be True, False, 'input', 'zoomout' or 'placed', got {dense!r}")
     check_rank_tau_scale(rank_tau_scale)
     check_rank_residual(rank_residual)
 
@@ -989,7 +993,8 @@ def _dense_fields(sx, sy, P, Q, fit: _Fit, dense) -> dict:
     """The dense maps' fields of :class:`MatchResult` (:func:`gromov.dense.dense_maps`)."""
     from .dense import dense_maps
 
-    mxy, myx = dense_maps(sx, sy, (P, fit.img_q), (fit.img_p, Q), refine=None if dense == "placed" else "zoomout")
+    refine = {True: "input", "placed": None}.get(dense, dense)
+    mxy, myx = dense_maps(sx, sy, (P, fit.img_q), (fit.img_p, Q), refine=refine)
     return {"x_to_y_dense_face": mxy.face, "x_to_y_dense_bary": mxy.bary, "x_to_y_dense_vertex": mxy.vertex,
             "y_to_x_dense_face": myx.face, "y_to_x_dense_bary": myx.bary, "y_to_x_dense_vertex": myx.vertex,
             "input_faces": (_file_faces(sx), _file_faces(sy))}
