@@ -164,8 +164,8 @@ def test_bad_inputs_are_refused(pair, tmp_path):
         match_figure(x, y, r, titles="X")
     with pytest.raises(TypeError, match="y_mesh must be a gromov.Mesh, got ndarray"):
         match_figure(x, y.vertices, r)
-    big = icosphere(4)   # 2562 vertices: more vertex ids than the map of the torus covers
-    with pytest.raises(ValueError, match="x_mesh has vertex id 2561 .* other shapes"):
+    big = icosphere(4)   # 2562 vertices: another file than the one the map of the torus covers
+    with pytest.raises(ValueError, match="x_mesh comes from a file of 2562 vertices .* other shapes"):
         match_figure(big, y, r)
     with pytest.raises(ValueError, match="does not exist"):
         write_match_html(x, y, r, tmp_path / "missing" / "map.html")
