@@ -1,7 +1,7 @@
 """Dense correspondence: ``gromov.match(..., dense=True)`` beside functional maps (pyFM).
 
 Run:  .venv/bin/python benchmarks/bench_dense.py [--data DIR] [--topkids N] [--classes cat,dog,...]
-                                                [--quick] [--json OUT]
+                                                [--remeshed DIR] [--quick] [--json OUT]
 
 The anchor is pyFM (``pip install pyfmaps``, import ``pyFM``) as its quick-start runs it: both
 meshes area-normalised and centred, 200 Laplace-Beltrami eigenpairs, WKS descriptors (every
@@ -13,7 +13,10 @@ parameters on every pair, no tuning.
 Pairs: SHREC'16 TOPKIDS kidXX -> kid00 (XX = 01..25; symmetric ground truth: kid00's symmetry
 file) and, per TOSCA class with a pose 0, pose 0 <-> the next pose, both directions (ground
 truth: the same vertex; symmetric reading: the mirror map of pose 0,
-:func:`gromov.experiments.reproduce.reflection_map`, shared by the class's poses).
+:func:`gromov.experiments.reproduce.reflection_map`, shared by the class's poses). With
+``--remeshed DIR`` (made by ``benchmarks/remesh.py``), the same pairs on copies of the poses
+remeshed independently (no shared vertex or triangle; truth carried by the nearest original
+vertex), and pose 0 at two densities against each other (``cls0-2000`` <-> ``cls0-8000``).
 
 Measured per pair, on the target's input mesh with :func:`gromov.evaluate.dense_error`
 (geodesic error by fast marching / sqrt(area), the better of the direct and the mirrored
@@ -56,8 +59,8 @@ PYFM = {"trimesh": {"area_normalize": True, "center": True},
         "fit": {"K": 30, "w_descr": 1e0, "w_lap": 1e-1, "w_dcomm": 1e0, "w_orient": 1e0},
         "zoomout_refine": {"nit": 16, "step": 5}}
 KINDS = ("ours_samples", "ours_dense", "pyfm_samples", "pyfm_dense")
-#: ``gromov.match``'s ``dense``: "zoomout" (the default, as ``dense=True``) or "placed" (``--dense``)
-DENSE = {"mode": "zoomout"}
+#: ``gromov.match``'s ``dense``: "input" (the default, as ``dense=True``), "zoomout" or "placed" (``--dense``)
+DENSE = {"mode": "input"}
 
 
 def at_vertices(mesh: gromov.Mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -190,13 +193,55 @@ def run_tosca(root: Path, classes: list[str]) -> dict:
     return {"summary": summary, "classes": classes, "pairs": _rows_for_json(rows)}
 
 
+def run_remeshed(root: Path, folder: Path, classes: list[str]) -> dict:
+    """The TOSCA pairs on independently remeshed copies (``benchmarks/remesh.py``), both
+    directions, and each class's pose 0 at two densities; truth by the nearest original vertex."""
+    from remesh import POSES, true_images
+
+    tosca = datasets.TOSCA(root / "tosca")
+    densities = sorted({p.name.split("-")[1].split(".")[0] for p in folder.glob("*-*.off")}, key=int)
+    rows = []
+    for cls in classes:
+        names = [f"{cls}0", f"{cls}{POSES[cls]}"]
+        pairs = [(names[0], names[1]), (names[1], names[0])]
+        if len(densities) >= 2:
+            lo, hi = (f"{cls}0-{densities[0]}", f"{cls}0-{densities[-1]}")
+            names += [lo, hi]
+            pairs += [(lo, hi), (hi, lo)]
+        if not all((folder / f"{n}.off").exists() for n in names):
+            raise FileNotFoundError(f"{folder} lacks a copy of {cls}: run benchmarks/remesh.py --out {folder}")
+        originals = {p: tosca.load(cls, p) for p in (0, POSES[cls])}
+        refl = reflection_map(originals[0])   # shared by the class's poses
+        copies = {n: (gromov.load(folder / f"{n}.off"), np.loadtxt(folder / f"{n}.ids.txt", dtype=np.int64))
+                  for n in names}
+        pose = {n: int(n.split("-")[0][len(cls):]) for n in names}
+        for a, b in pairs:
+            (x, ids_x), (y, ids_y) = copies[a], copies[b]
+            orig_y = originals[pose[b]].vertices
+            truth = true_images(ids_x, orig_y, y.vertices)
+            sym = true_images(refl[ids_y], orig_y, y.vertices)
+            rows.append(evaluate_pair(f"{a}->{b}", x, y, y, truth, sym, GeodesicReference(y)))
+    poses = [r for r in rows if "-" not in r["pair"].split("->")[0]]
+    density = [r for r in rows if r not in poses]
+    out = {"classes": classes, "summary": summarise("TOSCA remeshed, pose 0 <-> next pose", poses, True),
+           "pairs": _rows_for_json(poses)}
+    if density:
+        out["density"] = {"summary": summarise("TOSCA remeshed, pose 0 at two densities", density, True),
+                          "pairs": _rows_for_json(density)}
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
     ap.add_argument("--topkids", type=int, default=25, help="how many kids (0: none)")
     ap.add_argument("--classes", default=",".join(TOSCA_PAIRS), help="TOSCA classes ('': none)")
-    ap.add_argument("--dense", choices=("zoomout", "placed"), default="zoomout",
-                    help="our dense map: placed and refined by ZoomOut (default), or placed only")
+    ap.add_argument("--remeshed", default=None,
+                    help="also the TOSCA pairs on the copies benchmarks/remesh.py made in this folder")
+    ap.add_argument("--remeshed-classes", default=",".join(TOSCA_PAIRS), help="their classes")
+    ap.add_argument("--dense", choices=("input", "zoomout", "placed"), default="input",
+                    help="our dense map: refined on the input meshes (default), on the working meshes, "
+                         "or placed only")
     ap.add_argument("--quick", action="store_true", help=f"3 kids, classes {','.join(QUICK_CLASSES)}")
     ap.add_argument("--json", default=str(HERE / "results" / "dense.json"))
     args = ap.parse_args(argv)
@@ -214,6 +259,8 @@ def main(argv=None):
         res["topkids"] = run_topkids(Path(args.data), n_kids)
     if classes:
         res["tosca"] = run_tosca(Path(args.data), classes)
+    if args.remeshed:
+        res["remeshed"] = run_remeshed(Path(args.data), Path(args.remeshed), args.remeshed_classes.split(","))
     res["total_seconds"] = time.perf_counter() - t0
     print(f"\ntotal {res['total_seconds']:.0f} s")
     write_results(args.json, res)

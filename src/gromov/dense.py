@@ -374,15 +374,7 @@ def _segment_argmin(values: np.ndarray, ptr: np.ndarray) -> np.ndarray:
 
 def _by_file_id(s, face, bary, vertex) -> DenseMap:
     """The images indexed by ``s``'s input file ids (-1 / NaN where the file has no vertex)."""
-    ids = s.input.input_ids
-    n = int(ids.max()) + 1 if len(ids) else 0
-    if n == len(ids) and np.array_equal(ids, np.arange(n)):
-        return DenseMap(face, bary, vertex)
-    f = np.full(n, -1, dtype=np.int64)
-    b = np.full((n, 3), np.nan)
-    v = np.full(n, -1, dtype=np.int64)
-    f[ids], b[ids], v[ids] = face, bary, vertex
-    return DenseMap(f, b, v)
+    return DenseMap(*(s.input.per_file_vertex(a) for a in (face, bary, vertex)))
 
 
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
