@@ -288,12 +288,12 @@ def test_input_zoomout_keeps_the_identity_and_brings_back_a_shaken_map():
     n = s.input.n_vertices
     assert s.mesh.n_vertices < n
     ids = np.arange(n)
-    np.testing.assert_array_equal(input_zoomout(s, s, ids, k=40), ids)
+    np.testing.assert_array_equal(input_zoomout(s, s, ids, k_end=40), ids)
     ptr, nbr = ring_neighbourhoods(s.input, 1)
     rng = np.random.default_rng(3)
     shaken = nbr[ptr[:-1] + rng.integers(0, np.diff(ptr))]
     assert np.mean(shaken == ids) < 0.3
-    back = input_zoomout(s, s, shaken, k=40)
+    back = input_zoomout(s, s, shaken, k_end=40)
     assert np.mean(back == ids) > 0.95
 
 

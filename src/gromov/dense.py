@@ -58,9 +58,9 @@ REFINEMENTS = ("input", "zoomout", None)
 DENSE_REFINE: str | None = "input"
 #: ZoomOut refinement on the working meshes: eigenfunctions from, to, step.
 ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
-#: Refinement on the input meshes: eigenfunctions, iterations, and the rings of the input mesh
-#: around the current image that each iteration searches.
-INPUT_K, INPUT_ITER, INPUT_RINGS = 100, 5, 2
+#: Refinement on the input meshes: eigenfunctions from, to, step, and the rings of the input
+#: mesh around the current image that each step searches.
+INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS = 20, 100, 4, 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -283,19 +283,27 @@ def _nearest_in_rings(a, b, T, ptr, ids):
     return out
 
 
-def input_zoomout(sx, sy, T: np.ndarray, *, k: int = INPUT_K, n_iter: int = INPUT_ITER,
-                  rings: int = INPUT_RINGS) -> np.ndarray:
+def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: int = INPUT_K,
+                  step: int = INPUT_STEP, rings: int = INPUT_RINGS) -> np.ndarray:
     r"""Refine a vertex map between the *input* meshes of X and Y spectrally, locally.
 
-    ZoomOut's step (Melzi et al., SIGGRAPH Asia 2019) on the first ``k`` Laplace-Beltrami
-    eigenfunctions :math:`\Phi` of each input mesh (:func:`laplace_beltrami_basis`), ``n_iter``
-    times: the functional map :math:`C = \Phi_X^\top M_X \Phi_Y[T]`, then
+    ZoomOut (Melzi et al., SIGGRAPH Asia 2019) on the Laplace-Beltrami eigenfunctions
+    :math:`\Phi` of each input mesh (:func:`laplace_beltrami_basis`): for k from ``k_start`` to
+    ``k_end`` by ``step``, the functional map of the current map on the first k of them,
+    made orthogonal (the closest orthogonal matrix, from its SVD, as the ICP refinement of
+    Ovsjanikov et al., "Functional maps", SIGGRAPH 2012, §6.1, does for a near-isometry),
+
+    .. math:: C = U V^\top, \quad U \Sigma V^\top = \Phi_X^\top M_X \Phi_Y[T],
+
+    then the nearest point of Y in the spectral embedding,
 
     .. math:: T(v) = \arg\min_{w \in N(T(v))} \lVert \Phi_X(v)\, C - \Phi_Y(w) \rVert,
 
-    where :math:`N(u)` is the ``rings``-ring of u on Y's input mesh. Searching near the current
-    image, not over all of Y, keeps the map in the basin the robust placement found (no jump to
-    a symmetric part, nor across a change of topology) and costs ``O(n k)`` per iteration.
+    searched only in the ``rings``-ring :math:`N(u)` of the current image u on Y's input mesh.
+    Searching near the current image, not over all of Y, keeps the map in the basin the robust
+    placement found (no jump to a symmetric part, nor across a change of topology) and costs
+    ``O(n k)`` per step. Without the orthogonal projection the functional map of an imprecise
+    map shrinks its high frequencies, and the nearest points drift toward a smoothed map.
 
     Parameters
     ----------
@@ -303,7 +311,7 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k: int = INPUT_K, n_iter: int = INPU
         Both meshes.
     T : ndarray (n_X,) of int
         Vertex of Y's input mesh (index, not file id) for each vertex of X's input mesh.
-    k, n_iter, rings : int, defaults INPUT_K, INPUT_ITER, INPUT_RINGS
+    k_start, k_end, step, rings : int, defaults INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS
 
     Returns
     -------
@@ -313,16 +321,16 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k: int = INPUT_K, n_iter: int = INPU
     if T.shape != (sx.input.n_vertices,):
         raise ValueError(f"T must have one vertex of Y per input vertex of X, shape "
                          f"({sx.input.n_vertices},), got {T.shape}")
-    phx, mx = _input_basis(sx, k)
-    phy, _ = _input_basis(sy, k)
-    k = min(phx.shape[1], phy.shape[1])
-    phx, phy = phx[:, :k], np.ascontiguousarray(phy[:, :k])
+    phx, mx = _input_basis(sx, k_end)
+    phy, _ = _input_basis(sy, k_end)
+    k_end = min(k_end, phx.shape[1], phy.shape[1])
     if sy._input_rings is None or sy._input_rings[0] != rings:
         sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
     ptr, ids = sy._input_rings[1]
-    for _ in range(int(n_iter)):
-        C = phx.T @ (mx[:, None] * phy[T])
-        T = _nearest_in_rings(*(readonly(a) for a in (np.ascontiguousarray(phx @ C), phy, T, ptr, ids)))
+    for k in range(min(k_start, k_end), k_end + 1, step):
+        u, _, vt = np.linalg.svd(phx[:, :k].T @ (mx[:, None] * phy[T, :k]))
+        a = np.ascontiguousarray(phx[:, :k] @ (u @ vt))
+        T = _nearest_in_rings(*(readonly(b) for b in (a, np.ascontiguousarray(phy[:, :k]), T, ptr, ids)))
     return T
 
 
