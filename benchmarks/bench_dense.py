@@ -1,7 +1,7 @@
 """Dense correspondence: ``gromov.match(..., dense=True)`` beside functional maps (pyFM).
 
 Run:  .venv/bin/python benchmarks/bench_dense.py [--data DIR] [--topkids N] [--classes cat,dog,...]
-                                                [--remeshed DIR] [--quick] [--json OUT]
+                                                [--remeshed DIR] [--perturbed DIR] [--quick] [--json OUT]
 
 The anchor is pyFM (``pip install pyfmaps``, import ``pyFM``) as its quick-start runs it: both
 meshes area-normalised and centred, 200 Laplace-Beltrami eigenpairs, WKS descriptors (every
@@ -17,6 +17,10 @@ truth: the same vertex; symmetric reading: the mirror map of pose 0,
 ``--remeshed DIR`` (made by ``benchmarks/remesh.py``), the same pairs on copies of the poses
 remeshed independently (no shared vertex or triangle; truth carried by the nearest original
 vertex), and pose 0 at two densities against each other (``cls0-2000`` <-> ``cls0-8000``).
+With ``--perturbed DIR`` (the same copies), each class's remeshed pose 0 against itself with
+topological noise (:func:`gromov.perturb.holes`, 20 holes as the paper's Experiment 2; and
+:func:`gromov.perturb.weld`, 3 welds), both directions: truth by the perturbation's vertex map;
+from the whole shape only the vertices the perturbed one keeps are scored.
 
 Measured per pair, on the target's input mesh with :func:`gromov.evaluate.dense_error`
 (geodesic error by fast marching / sqrt(area), the better of the direct and the mirrored
@@ -107,6 +111,8 @@ def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None) -> dict:
     row = {"pair": name, "seconds": {"ours": t_ours, "pyfm": t_pyfm}}
     t = time.perf_counter()
     for kind, (face, bary, tru) in maps.items():
+        if (tru < 0).any():   # X vertices without a true image (removed from Y): not scored
+            face, bary, tru = face[tru >= 0], bary[tru >= 0], tru[tru >= 0]
         e = dense_error(face, bary, y, tru, sym, fmm=fmm)
         row[kind] = {"mean": e.mean, "median": float(np.median(e.errors)), "mean_direct": e.mean_direct,
                      "median_direct": float(np.median(e.direct)), "per_diameter": float(e.per_diameter().mean()),
@@ -231,6 +237,37 @@ def run_remeshed(root: Path, folder: Path, classes: list[str]) -> dict:
     return out
 
 
+def run_perturbed(folder: Path, classes: list[str]) -> dict:
+    """Each class's remeshed pose 0 against itself with 20 holes and with 3 welds, both ways."""
+    from gromov.perturb import holes, weld
+
+    out = {}
+    for kind, make in (("holes", lambda m: holes(m, 20)), ("weld", lambda m: weld(m, 3))):
+        rows = []
+        for cls in classes:
+            clean = gromov.load(folder / f"{cls}0.off")
+            try:
+                p = make(clean)
+            except ValueError as exc:   # no room for the noise on this shape
+                print(f"  {cls}0: no {kind}: {exc}")
+                continue
+            # numbered 0..n-1 as a file of its own; noisy vertex i is clean vertex back[i]
+            noisy, back = gromov.Mesh(p.mesh.vertices, p.mesh.faces), clean.input_ids[p.vertex_map]
+            forward = np.full(clean.n_vertices, -1)
+            forward[back] = np.arange(noisy.n_vertices)
+            rows.append((evaluate_pair(f"{cls}0+{kind}->{cls}0", noisy, clean, clean, back, None,
+                                       GeodesicReference(clean)),
+                         evaluate_pair(f"{cls}0->{cls}0+{kind}", clean, noisy, noisy, forward, None,
+                                       GeodesicReference(noisy))))
+        to_clean, to_noisy = [a for a, _ in rows], [b for _, b in rows]
+        out[kind] = {"summary": summarise(f"remeshed pose 0 with {kind} <-> without (direct only)",
+                                          to_clean + to_noisy, False),
+                     "to_clean": summarise(f"{kind} -> clean", to_clean, False),
+                     "to_noisy": summarise(f"clean -> {kind}", to_noisy, False),
+                     "pairs": _rows_for_json(to_clean + to_noisy)}
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
@@ -239,6 +276,9 @@ def main(argv=None):
     ap.add_argument("--remeshed", default=None,
                     help="also the TOSCA pairs on the copies benchmarks/remesh.py made in this folder")
     ap.add_argument("--remeshed-classes", default=",".join(TOSCA_PAIRS), help="their classes")
+    ap.add_argument("--perturbed", default=None,
+                    help="each class's copy of pose 0 in this folder (benchmarks/remesh.py) against itself "
+                         "with holes and welds")
     ap.add_argument("--dense", choices=("input", "zoomout", "placed"), default="input",
                     help="our dense map: refined on the input meshes (default), on the working meshes, "
                          "or placed only")
@@ -261,6 +301,8 @@ def main(argv=None):
         res["tosca"] = run_tosca(Path(args.data), classes)
     if args.remeshed:
         res["remeshed"] = run_remeshed(Path(args.data), Path(args.remeshed), args.remeshed_classes.split(","))
+    if args.perturbed:
+        res["perturbed"] = run_perturbed(Path(args.perturbed), args.remeshed_classes.split(","))
     res["total_seconds"] = time.perf_counter() - t0
     print(f"\ntotal {res['total_seconds']:.0f} s")
     write_results(args.json, res)

@@ -412,8 +412,8 @@ def cmd_match(args) -> int:
     if store is None:   # (a store's shapes have their metrics already)
         _check_memory([s.mesh.n_vertices for s in shapes], f"--resolution {args.resolution}")
     dense = bool(args.dense or args.map or args.html)
-    if dense and args.dense == "placed":
-        dense = "placed"
+    if dense and args.dense in ("zoomout", "placed"):
+        dense = args.dense
     if args.map:
         _check_folder(args.map, "--map")
     if args.html:
@@ -1174,11 +1174,12 @@ def _match_parser(sub) -> None:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
-    q.add_argument("--dense", nargs="?", const="zoomout", choices=("zoomout", "placed"), default=None,
+    q.add_argument("--dense", nargs="?", const="input", choices=("input", "zoomout", "placed"), default=None,
                    help="also map every vertex: an image on Y for each vertex of X and on X for "
                         "each vertex of Y (x_to_y_dense_vertex/face/bary and y_to_x_dense_* in --out), "
-                        "placed by its distances to the samples and refined by ZoomOut; "
-                        "'--dense placed': without the refinement")
+                        "placed by its distances to the samples and refined by ZoomOut on the input "
+                        "meshes; '--dense zoomout': refined on the working meshes instead; "
+                        "'--dense placed': without a refinement")
     q.add_argument("--map", default=None, metavar="FILE.txt",
                    help="write the dense X -> Y vertex map: one 1-based vertex id of Y per vertex "
                         "of X, one per line (SHREC's format; implies --dense)")

@@ -284,7 +284,7 @@ def _nearest_in_rings(a, b, T, ptr, ids):
 
 
 def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: int = INPUT_K,
-                  step: int = INPUT_STEP, rings: int = INPUT_RINGS) -> np.ndarray:
+                  step: int = INPUT_STEP, rings: int = INPUT_RINGS, orthogonal: bool = True) -> np.ndarray:
     r"""Refine a vertex map between the *input* meshes of X and Y spectrally, locally.
 
     ZoomOut (Melzi et al., SIGGRAPH Asia 2019) on the Laplace-Beltrami eigenfunctions
@@ -312,6 +312,8 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     T : ndarray (n_X,) of int
         Vertex of Y's input mesh (index, not file id) for each vertex of X's input mesh.
     k_start, k_end, step, rings : int, defaults INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS
+    orthogonal : bool, default True
+        Project each functional map onto the orthogonal matrices (False: plain ZoomOut).
 
     Returns
     -------
@@ -328,8 +330,11 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
         sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
     ptr, ids = sy._input_rings[1]
     for k in range(min(k_start, k_end), k_end + 1, step):
-        u, _, vt = np.linalg.svd(phx[:, :k].T @ (mx[:, None] * phy[T, :k]))
-        a = np.ascontiguousarray(phx[:, :k] @ (u @ vt))
+        C = phx[:, :k].T @ (mx[:, None] * phy[T, :k])
+        if orthogonal:
+            u, _, vt = np.linalg.svd(C)
+            C = u @ vt
+        a = np.ascontiguousarray(phx[:, :k] @ C)
         T = _nearest_in_rings(*(readonly(b) for b in (a, np.ascontiguousarray(phy[:, :k]), T, ptr, ids)))
     return T
 
