@@ -16,7 +16,8 @@ For each copy NAME the folder gets ``NAME.off`` and ``NAME.ids.txt``: per vertex
 the nearest vertex (0-based) of the original pose. Since the poses of a class share their
 vertex numbering, the true image of a copy's vertex v on another copy of the class is the
 vertex of that copy nearest to original vertex ``ids[v]`` (``true_images`` below). The meshes
-are research data: the folder stays outside the repository.
+are research data: the folder stays outside the repository. Needs pymeshlab
+(``pip install ".[remesh]"``).
 """
 
 from __future__ import annotations
