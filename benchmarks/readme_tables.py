@@ -145,6 +145,9 @@ def anchors_table() -> str:
     big = max(fps["rows"], key=lambda row: row["points"])
     tosca = load("dense_tosca.json")["tosca"]
     td, tt = dense["topkids"]["summary"], tosca["summary"]
+    rem = load("dense_remeshed.json")["remeshed"]
+    tr, tdn = rem["summary"], rem["density"]["summary"]
+    pert = load("dense_perturbed.json")["perturbed"]
     rows = [
         "| task | gromov | anchor |",
         "|---|---|---|",
@@ -166,6 +169,15 @@ def anchors_table() -> str:
         f"| dense map, {len(tosca['pairs'])} clean TOSCA pairs ({len(tosca['classes'])} classes): mean; median | "
         f"{tt['ours_dense']['mean']:.2f}; {tt['ours_dense']['median']:.2f} | {tt['pyfm_dense']['mean']:.2f}; "
         f"{tt['pyfm_dense']['median']:.2f} (pyFM) |",
+        f"| dense map, {len(rem['pairs'])} TOSCA pairs each remeshed on its own ({len(rem['classes'])} classes): "
+        f"mean; median | {tr['ours_dense']['mean']:.2f}; {tr['ours_dense']['median']:.2f} | "
+        f"{tr['pyfm_dense']['mean']:.2f}; {tr['pyfm_dense']['median']:.2f} (pyFM) |",
+        f"| dense map, a shape against itself: remeshed at another density; with 20 holes; with 3 welds "
+        f"(both directions): mean; median | "
+        + "; ".join(f"{d['ours_dense']['mean']:.2f}, {d['ours_dense']['median']:.2f}"
+                    for d in (tdn, pert["holes"]["summary"], pert["weld"]["summary"])) + " | "
+        + "; ".join(f"{d['pyfm_dense']['mean']:.2f}, {d['pyfm_dense']['median']:.2f}"
+                    for d in (tdn, pert["holes"]["summary"], pert["weld"]["summary"])) + " (pyFM) |",
         f"| farthest point sampling, {big['points']:,} points → {big['samples']:,} | "
         f"{_secs(big['ours_s'])} | {_secs(big['fpsample_vanilla_s'])} / "
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
@@ -359,18 +371,31 @@ DENSE_LABELS = (("ours_samples", "ours, at our samples"), ("ours_dense", "**ours
                 ("pyfm_samples", "pyFM, at our samples"), ("pyfm_dense", "pyFM, dense"))
 
 
-def dense_table(ours: dict, placed: dict | None, ds: str) -> str:
-    """bench_dense.py on one data set: the dense map beside pyFM's (and without ZoomOut, where
-    ``placed`` is given)."""
+def dense_table(summary: dict, placed: dict | None = None) -> str:
+    """bench_dense.py's summary of one data set: the dense map beside pyFM's (and without a
+    refinement, where ``placed``, the summary of a ``--dense placed`` run, is given)."""
     rows = ["| map | mean | median | mean, direct | gross | s / pair |", "|---|---|---|---|---|---|"]
     for key, label in DENSE_LABELS:
-        r = ours[ds]["summary"][key]
+        r = summary[key]
         rows.append(f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
                     f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
     if placed is not None:
-        r = placed[ds]["summary"]["ours_dense"]
+        r = placed["ours_dense"]
         rows.append(f"| ours, dense, placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} | "
                     f"{r['mean_direct']:.2f} | {r['gross']} | |")
+    return "\n".join(rows)
+
+
+def perturbed_table(r: dict) -> str:
+    """bench_dense.py --perturbed: a remeshed pose against itself with holes or welds, each way."""
+    rows = ["| pairs | ours, dense: mean | median | pyFM, dense: mean | median | ours, at our samples: mean "
+            "| gross (ours / pyFM) |", "|---|---|---|---|---|---|---|"]
+    for kind in ("holes", "weld"):
+        for part, label in (("to_clean", f"with {kind} → without"), ("to_noisy", f"without → with {kind}")):
+            d = r[kind][part]
+            rows.append(f"| {label} | {d['ours_dense']['mean']:.2f} | {d['ours_dense']['median']:.2f} | "
+                        f"{d['pyfm_dense']['mean']:.2f} | {d['pyfm_dense']['median']:.2f} | "
+                        f"{d['ours_samples']['mean']:.2f} | {d['ours_dense']['gross']} / {d['pyfm_dense']['gross']} |")
     return "\n".join(rows)
 
 
@@ -404,11 +429,15 @@ def benchmark_tables() -> list[tuple[str, str]]:
     """Every benchmark table of docs/benchmarks.md, each with the results file it reads."""
     f, m = load("foundation.json"), load("match.json")
     dense, placed = load("dense.json"), load("dense-placed.json")
+    remeshed = load("dense_remeshed.json")["remeshed"]
     return [("foundation.json", foundation_table(f)), ("foundation.json", foundation_steps(f)),
             ("match.json", match_table(m)), ("match.json", match_speed(m)),
-            ("dense.json, dense-placed.json", dense_table(dense, placed, "topkids")),
-            ("dense.json, dense-placed.json", dense_table(dense, placed, "tosca")),
-            ("dense_tosca.json", dense_table(load("dense_tosca.json"), None, "tosca")),
+            *(("dense.json, dense-placed.json", dense_table(dense[ds]["summary"], placed[ds]["summary"]))
+              for ds in ("topkids", "tosca")),
+            ("dense_tosca.json", dense_table(load("dense_tosca.json")["tosca"]["summary"])),
+            ("dense_remeshed.json", dense_table(remeshed["summary"])),
+            ("dense_remeshed.json", dense_table(remeshed["density"]["summary"])),
+            ("dense_perturbed.json", perturbed_table(load("dense_perturbed.json")["perturbed"])),
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
             ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
             ("speed.json", speed_table(load("speed.json"))),

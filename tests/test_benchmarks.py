@@ -238,10 +238,18 @@ def test_anchor_table_is_the_results_files():
     assert (f"| {s['ours_dense']['mean']:.2f}; {s['ours_dense']['median']:.2f} | {s['pyfm_dense']['mean']:.2f}; "
             f"{s['pyfm_dense']['median']:.2f} (pyFM) |") in rows[5], rows[5]
     assert len(tosca["classes"]) == 8 and len(tosca["pairs"]) == 16 and "16 clean TOSCA pairs (8 classes)" in rows[5]
+    rem = _json("dense_remeshed.json")["remeshed"]
+    s = rem["summary"]
+    assert (f"| {s['ours_dense']['mean']:.2f}; {s['ours_dense']['median']:.2f} | {s['pyfm_dense']['mean']:.2f}; "
+            f"{s['pyfm_dense']['median']:.2f} (pyFM) |") in rows[6], rows[6]
+    assert len(rem["classes"]) == 8 and len(rem["pairs"]) == 16 and "16 TOSCA pairs each remeshed" in rows[6]
+    holes = _json("dense_perturbed.json")["perturbed"]["holes"]["summary"]["ours_dense"]
+    density = rem["density"]["summary"]["ours_dense"]
+    assert f"| {density['mean']:.2f}, {density['median']:.2f}; {holes['mean']:.2f}, {holes['median']:.2f};" in rows[7]
     big = _json("cloud_sampling.json")["rows"][-1]
     assert big["points"] == 1_000_000
     assert (f"| {big['ours_s']:.2f} s | {big['fpsample_vanilla_s']:.2f} s / {big['fpsample_quickfps_s']:.2f} s"
-            in rows[6])
+            in rows[8])
 
 
 def test_benchmark_page_tables_are_the_results_files():
@@ -252,11 +260,11 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 14
+    assert len(tables) == 17
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
-    (foundation, steps, match_acc, match_speed, _, _, _, sampling, clouds, speed, collection, retrieval, resume,
-     dask) = (t for _, t in tables)
+    (foundation, steps, match_acc, match_speed, _, _, _, _, _, _, sampling, clouds, speed, collection, retrieval,
+     resume, dask) = (t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
     d = _json("foundation.json")["diffusion"]
@@ -318,6 +326,14 @@ def test_dense_tables_are_the_results_files():
         assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in page
     r = _json("dense_tosca.json")["tosca"]["summary"]["pyfm_dense"]
     assert f"| pyFM, dense | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | {r['gross']} |" in page
+    rem = _json("dense_remeshed.json")["remeshed"]
+    for summary in (rem["summary"], rem["density"]["summary"]):
+        r = summary["ours_dense"]
+        assert f"| **ours, dense** | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} |" in page
+    pert = _json("dense_perturbed.json")["perturbed"]
+    for kind in ("holes", "weld"):
+        r, q = pert[kind]["to_clean"]["ours_dense"], pert[kind]["to_clean"]["pyfm_dense"]
+        assert f"| with {kind} → without | {r['mean']:.2f} | {r['median']:.2f} | {q['mean']:.2f} |" in page
     cost = _json("dense_cost.json")
     flat = page.replace("\n", " ")
     assert f"it adds {cost['added_s']:.2f} s to a {cost['seconds']['sparse']:.2f} s match" in flat
