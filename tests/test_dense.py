@@ -330,3 +330,17 @@ def test_the_input_refinement_maps_a_permuted_finer_copy():
 
         s = ShapeMetric(x, "diffusion", resolution=300)
         dense_maps(s, s, (np.arange(3), np.arange(3)), (np.arange(3), np.arange(3)), refine="spectral")
+
+
+def test_the_input_refinement_sharpens_a_real_map(data_dir):
+    """wolf0 -> wolf1 of TOSCA (4,344 vertices, matched on a 3,000-vertex working mesh): the
+    refinement on the input meshes brings most vertices to their very image and cuts the mean
+    error of the placed map by more than half."""
+    a = gromov.load(data_dir / "tosca" / "wolf0.off.gz")
+    b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
+    ids = np.arange(a.n_vertices)
+    placed, refined = (gromov.match(a, b, dense=mode) for mode in ("placed", True))
+    e_placed, e_refined = (dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, b, ids) for r in (placed, refined))
+    assert e_refined.mean < 0.5 * e_placed.mean
+    assert np.median(e_refined.errors) == 0.0 < np.median(e_placed.errors)
+    assert np.mean(refined.x_to_y_dense_vertex == ids) > 0.6
