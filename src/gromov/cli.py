@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from ._atomic import atomic_path, atomic_savez_compressed
 from ._json import finite as _finite
 from ._defaults import (DEFAULT_RESOLUTION, DEFAULT_UNITS, DIFFUSION_FILL_HOLES, GZIP_FLOOR, GZIP_RATIO,

@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from ._atomic import atomic_write_bytes
+from ._version import __version__
 from .errors import GromovError
 from .gh import DEFAULT_RESOLUTION, ShapeMetric, _match
 from .gmds import EmbeddedDistance
@@ -148,12 +149,6 @@ class PairRecord:
     arrays: dict
     seconds: float
     created: float
-
-
-def _version() -> str:
-    from . import __version__
-
-    return __version__
 
 
 def _plain(obj):
@@ -437,13 +432,13 @@ class ShapeStore:
     @staticmethod
     def entry_key(content_hash: str, options: dict) -> str:
         """SHA-256 of the content hash, the options, the gromov version and the store format."""
-        return _sha256(_dumps({"content": content_hash, "options": options, "version": _version(),
+        return _sha256(_dumps({"content": content_hash, "options": options, "version": __version__,
                                "format": FORMAT}).encode())
 
     @staticmethod
     def pair_key(x: str, y: str, options: dict) -> str:
         """SHA-256 of the two entry keys (in order: X, Y), the match options and the version."""
-        return _sha256(_dumps({"x": x, "y": y, "options": options, "version": _version(),
+        return _sha256(_dumps({"x": x, "y": y, "options": options, "version": __version__,
                                "format": FORMAT}).encode())
 
     def key_of(self, shape: ShapeMetric) -> str | None:
@@ -540,7 +535,7 @@ class ShapeStore:
         db = self._db()
         if path is not None:   # the same file and options indexed before with other content
             stale = db.execute("SELECT key, file FROM entries WHERE path = ? AND options = ? AND version = ? "
-                               "AND content_hash != ?", (path, _dumps(options), _version(), content)).fetchall()
+                               "AND content_hash != ?", (path, _dumps(options), __version__, content)).fetchall()
             if stale:
                 self._problem(f"{path} changed since it was indexed; its stored entry is not used and "
                               "the shape is computed again")
@@ -583,7 +578,7 @@ class ShapeStore:
             mine = row is None or (bad is not None and tuple(row) == tuple(bad))
             if mine:   # else another process stored the same shape first: keep its entry
                 db.execute("INSERT OR REPLACE INTO entries VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                           (key, path, content, _dumps(options), _version(), name, checksum,
+                           (key, path, content, _dumps(options), __version__, name, checksum,
                             s.mesh.n_vertices, len(data), time.time()))
         if not mine and row[0] != name:
             self._remove(name)
@@ -632,7 +627,7 @@ class ShapeStore:
         ``options`` (:func:`match_options_key`) by this gromov version."""
         keys = set(keys)
         rows = self._db().execute("SELECT x, y, distance, relative_distance, ranking_distance FROM pairs "
-                                  "WHERE options = ? AND version = ?", (_dumps(options), _version()))
+                                  "WHERE options = ? AND version = ?", (_dumps(options), __version__))
         return {(x, y): tuple(_float(v) for v in vals) for x, y, *vals in rows
                 if x in keys and y in keys}
 
@@ -642,7 +637,7 @@ class ShapeStore:
         db = self._db()
         with self._transaction(db):
             db.execute("INSERT OR IGNORE INTO pairs VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                       (key, x, y, _dumps(options), _version(), *(float(getattr(result, k)) for k in (
+                       (key, x, y, _dumps(options), __version__, *(float(getattr(result, k)) for k in (
                            "distance", "relative_distance", "distortion_trimmed", "relative_trimmed",
                            "ranking_distance")), blob, float(result.seconds), time.time()))
 
