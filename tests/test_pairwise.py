@@ -271,3 +271,13 @@ def test_pairwise_leaves_out_a_shape_whose_metric_fails(tmp_path, capsys, monkey
     assert res["files"] == [files[0], files[2]] and res["nearest"] == [files[2], files[0]]
     assert res["skipped"] == {files[1]: "no metric on this one", files[3]: "no metric on this one"}
     assert err.count("gromov: skipped") == 2
+
+
+def test_pairwise_with_one_usable_shape_names_the_others(tmp_path, capsys):
+    """With fewer than two usable shapes the run stops on one line naming each left-out file."""
+    from gromov.cli import main
+
+    files, bad = _collection(tmp_path)
+    assert main(["pairwise", files[0], bad, "--metric", "geodesic", "--samples", "20", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "at least two usable shapes; 1 of 2 can be used" in err and bad in err and "Traceback" not in err

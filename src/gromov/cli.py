@@ -708,9 +708,7 @@ def cmd_pairwise(args) -> int:
     # a shape that cannot be used is left out, with its reason; the others go on
     loaded, unusable = _usable_shapes(args)
     files = [f for f in args.files if f not in unusable]
-    if len(files) < 2:
-        raise _UserError(f"pairwise needs at least two usable shapes; {len(files)} of {n} can be used ("
-                         + "; ".join(f"{f}: {why}" for f, why in unusable.items()) + ")")
+    _check_usable(files, n, unusable)
     _check_neighbors(args, list(loaded.values()))
     options = _metric_options(args)
     store, handler = _open_store(args)
@@ -727,9 +725,7 @@ def cmd_pairwise(args) -> int:
                 raise
             unusable.update(failed)
             files = [f for f in files if f not in failed]
-            if len(files) < 2:
-                raise _UserError(f"pairwise needs at least two usable shapes; {len(files)} of {n} can be "
-                                 "used (" + "; ".join(f"{f}: {why}" for f, why in unusable.items()) + ")")
+            _check_usable(files, n, unusable)
             r = _pairwise_matrix(args, files, loaded, store, options, dask)
     finally:
         _close_store(store, handler)
@@ -838,6 +834,13 @@ def cmd_pairwise(args) -> int:
 def _one_line(exc: BaseException) -> str:
     """An error's message on one line."""
     return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _check_usable(files: list, n: int, unusable: dict) -> None:
+    """A user error naming every left-out file when fewer than two of the ``n`` remain."""
+    if len(files) < 2:
+        raise _UserError(f"pairwise needs at least two usable shapes; {len(files)} of {n} can be used ("
+                         + "; ".join(f"{f}: {why}" for f, why in unusable.items()) + ")")
 
 
 def _usable_shapes(args) -> tuple[dict, dict]:
