@@ -34,6 +34,7 @@ from gromov.metrics.diffusion import correspondence_options
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import HERE, add_data_argument  # noqa: E402
+from bench_dense import at_vertices  # noqa: E402
 
 TOSCA_PAIRS = (("cat", 1, 0), ("centaur", 1, 0), ("dog", 0, 1))
 KIDS = ("kid01", "kid03", "kid05", "kid12")
@@ -57,17 +58,13 @@ def main(argv=None) -> int:
         truth = np.arange(x.n_vertices) if truth is None else truth
         pts = np.random.default_rng(0).choice(x.n_vertices, min(args.points, x.n_vertices), replace=False)
         fmm = GeodesicReference(y)
-        y_faces = np.full(y.n_vertices, -1)
-        for c in range(3):
-            y_faces[y.faces[:, c]] = np.arange(len(y.faces))
 
         def score(face, bary):
             e = dense_error(face[pts], bary[pts], y, truth[pts], sym, fmm=fmm)
             return {"mean": 100 * e.mean, "median": 100 * float(np.median(e.errors))}
 
         def score_vertices(T):
-            f = y_faces[T]
-            return score(f, (y.faces[f] == T[:, None]).astype(float))
+            return score(*at_vertices(y, T))
 
         opts = correspondence_options("diffusion", None)
         sx, sy = ShapeMetric(x, "diffusion", metric_options=opts), ShapeMetric(y, "diffusion", metric_options=opts)
