@@ -32,18 +32,39 @@ def test_import_and_help_load_no_heavy_module():
     import sys
 
     code = ("import sys, contextlib, io, gromov\n"
-            "heavy = ('numba', 'scipy', 'gromov.gh', 'gromov.metrics')\n"
+            "heavy = ('numba', 'scipy', 'gromov.gh', 'gromov.shape_metric', 'gromov.metrics')\n"
             "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy or m in heavy))\n"
             "from gromov.cli import main\n"
             "with contextlib.suppress(SystemExit), contextlib.redirect_stdout(io.StringIO()):\n"
             "    main(['--help'])\n"
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('numba', 'scipy')\n"
-            "             or m.startswith(('gromov.gh', 'gromov.metrics', 'gromov.perturb'))))\n")
+            "             or m.startswith(('gromov.gh', 'gromov.shape_metric', 'gromov.metrics',\n"
+            "                              'gromov.perturb'))))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.splitlines() == ["[]", "[]"], out
     import gromov
 
     assert gromov.match.__module__ == "gromov.gh" and "match" in dir(gromov)
+
+
+def test_the_prepared_shape_and_the_result_keep_their_old_import_path():
+    """``ShapeMetric`` and ``MatchResult`` live in gromov.shape_metric and gromov.match_result;
+    code and pickles that name them in gromov.gh, where they were defined before, still find them."""
+    import pickle
+
+    import gromov
+    import gromov.gh as gh
+    from gromov.shapes import grid, rolled_grid
+
+    assert gh.ShapeMetric is gromov.ShapeMetric and gromov.ShapeMetric.__module__ == "gromov.shape_metric"
+    assert gh.MatchResult is gromov.MatchResult and gromov.MatchResult.__module__ == "gromov.match_result"
+    r = gromov.match(grid(11, 6), rolled_grid(11, 6), "geodesic", n_samples=10, resolution=None)
+    new = pickle.dumps(r, protocol=0)
+    old = new.replace(b"cgromov.match_result\nMatchResult\n", b"cgromov.gh\nMatchResult\n")
+    assert old != new   # a pickle written when the class was gromov.gh.MatchResult
+    back = pickle.loads(old)
+    assert type(back) is gromov.MatchResult and back.distance == r.distance
+    assert np.array_equal(back.x_to_y_vertex, r.x_to_y_vertex)
 
 
 def test_long_steps_say_what_they_do_on_a_terminal(tmp_path, capsys, monkeypatch):

@@ -5,7 +5,9 @@ with diffusion geometry for topologically-robust non-rigid shape matching", IJCV
 
 The pipeline, one module each: ``io`` (load/save) -> ``mesh`` (Mesh, PointCloud) ->
 ``resolution`` (working meshes) -> ``metrics`` (geodesic, diffusion, euclidean) ->
-``sampling`` (farthest points) -> ``gmds`` / ``gh`` (GMDS, the Gromov-Hausdorff distance).
+``sampling`` (farthest points) -> ``gmds`` (GMDS) -> ``shape_metric`` (a shape prepared for
+matching) -> ``search`` (GMDS's initial search) -> ``gh`` (the Gromov-Hausdorff distance,
+``match``, whose outcome is a ``match_result.MatchResult``).
 """
 
 from importlib import import_module as _import_module
@@ -21,7 +23,9 @@ _set_up_numba_cache()   # before any module that compiles kernels loads numba (t
 #: so that ``import gromov`` and ``gromov --help`` do not wait for numba, scipy.sparse and
 #: the compiled kernels.
 _LAZY = {
-    **dict.fromkeys(("MatchResult", "ShapeMetric", "match"), "gh"),
+    "ShapeMetric": "shape_metric",
+    "MatchResult": "match_result",
+    "match": "gh",
     **dict.fromkeys(("load", "save"), "io"),
     **dict.fromkeys(("Mesh", "PointCloud", "RepairReport", "fill_holes", "repair"), "mesh"),
     **dict.fromkeys(("EuclideanSolver", "GeodesicSolver", "GraphDiffusionSolver", "HeatDiffusionSolver",
@@ -32,19 +36,21 @@ _LAZY = {
 }
 #: Submodules reachable as attributes without an import statement.
 _SUBMODULES = ("perturb", "store", "search", "dense", "evaluate", "experiments", "gmds", "io", "mesh", "metrics",
-               "resolution", "sampling", "shapes", "gh")
+               "resolution", "sampling", "shapes", "gh", "shape_metric", "match_result")
 
 
 if TYPE_CHECKING:   # what the lazy table serves, for type checkers and documentation tools
     from . import perturb, store
-    from .gh import MatchResult, ShapeMetric, match
+    from .gh import match
     from .io import load, save
+    from .match_result import MatchResult
     from .mesh import Mesh, PointCloud, RepairReport, fill_holes, repair
     from .metrics import (BiharmonicSolver, EuclideanSolver, GeodesicSolver, GraphDiffusionSolver,
                           HeatDiffusionSolver, MetricSolver, distance_matrix, metric_solver)
     from .resolution import WorkingMesh, simplify, working_mesh
     from .sampling import Samples, farthest_point_sampling
     from .search import SearchOptions
+    from .shape_metric import ShapeMetric
 
 
 def __getattr__(name: str):

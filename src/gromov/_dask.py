@@ -39,7 +39,7 @@ try:
 except ImportError as exc:   # tests/test_dask.py hides distributed
     raise ImportError("gromov's Dask support needs dask.distributed: pip install 'gromov[dask]'") from exc
 
-from .gh import ShapeMetric
+from .shape_metric import ShapeMetric
 
 __all__ = ["LOCAL_CLUSTER_CONFIG", "HomeReplicas", "client_for", "one_thread", "plan", "prepare_workers",
            "reuse_freed_memory", "run_pinned", "spread", "worker_threads"]

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .gh import MatchResult, ShapeMetric
+from .match_result import MatchResult
+from .shape_metric import ShapeMetric
 from .mesh import Mesh
 
 __all__ = ["CorrespondenceError", "correspondence_error", "image_errors", "DenseError", "dense_errors",

@@ -83,8 +83,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._defaults import DEFAULT_RESOLUTION, PROFILE_SLACK, RANK_RESIDUAL, RANK_TAU_SCALE, TRIANGLE_SLACK
-from .gh import RANK_LOG_FLOOR, ShapeMetric, _match, _upgrade_options, check_rank_residual, check_rank_tau_scale
+from .gh import RANK_LOG_FLOOR, _match, _upgrade_options, check_rank_residual, check_rank_tau_scale
 from .gmds import EmbeddedDistance, norm_value, parse_norm, trimmed_rms
+from .shape_metric import ShapeMetric
 
 __all__ = ["BOUND_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs", "NearestResult", "Neighbor",
            "ShapeBound", "knn_pairs", "nearest", "pair_bound", "profile_gap", "shape_bound"]

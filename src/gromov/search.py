@@ -4,7 +4,7 @@ GMDS descends to a local minimum of the distortion, so the map it ends in is dec
 start. The search finds that start in three steps, each direction (X to Y, Y to X) on its own:
 
 1. *candidates* (:func:`_candidates`): the working vertices of the target whose signatures
-   (:attr:`ShapeMetric.descriptors <gromov.gh.ShapeMetric.descriptors>`) best match the first
+   (:attr:`ShapeMetric.descriptors <gromov.shape_metric.ShapeMetric.descriptors>`) best match the first
    sample's, at least 5% of the diameter apart;
 2. *coarse starts* (:class:`_Search`): from every candidate, the first few samples placed
    greedily and polished by discrete descent, once on distances alone and once with the
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,9 +29,7 @@ from . import _gmds_kernel as _kernel
 from ._arrays import argmin_stable, argsort_stable, readonly
 from .gmds import SurfacePoints, SymmetricGMDS
 from .orientation import orientation_agreements
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .gh import ShapeMetric
+from .shape_metric import ShapeMetric, _anchor_rows
 
 __all__ = ["SearchOptions", "greedy_init", "initial_pairs", "anchored_images", "signature_mismatch",
            "search_subsets", "pair_orientation", "pairs_orientation"]
@@ -52,7 +49,7 @@ EXTEND_ROUNDS = 3
 #: Farthest point samples of the target to which the initial search is restricted (None: all
 #: working vertices); the best start is then polished on all of them.
 DEFAULT_SEARCH_VERTICES: int | None = None
-#: :meth:`ShapeMetric.symmetry <gromov.gh.ShapeMetric.symmetry>` accepts a self-map whose RMS distortion is below this fraction of
+#: :meth:`ShapeMetric.symmetry <gromov.shape_metric.ShapeMetric.symmetry>` accepts a self-map whose RMS distortion is below this fraction of
 #: the diameter.
 SYMMETRY_TOL = 0.05
 #: ... and repairs it up to this many times where its two halves disagree by more than
@@ -146,7 +143,7 @@ class SearchOptions:
 
     @property
     def subsets(self) -> list[int]:
-        """Sizes of the vertex subsets (:meth:`ShapeMetric.subset <gromov.gh.ShapeMetric.subset>`)
+        """Sizes of the vertex subsets (:meth:`ShapeMetric.subset <gromov.shape_metric.ShapeMetric.subset>`)
         this search runs on, so that they can be computed once per shape
         (:func:`search_subsets`)."""
         return search_subsets(self.coarse_stages, self.search_vertices)
@@ -338,7 +335,7 @@ class _Search:
 
 def signature_mismatch(sx: "ShapeMetric", sy: "ShapeMetric", A: np.ndarray) -> np.ndarray:
     """``(len(A), n)``: squared mean absolute difference between the signatures
-    (:attr:`ShapeMetric.descriptors <gromov.gh.ShapeMetric.descriptors>`) of the vertices
+    (:attr:`ShapeMetric.descriptors <gromov.shape_metric.ShapeMetric.descriptors>`) of the vertices
     ``A`` of ``sx`` and of each working vertex of ``sy``, in squared distance units."""
     sb = sy.descriptors
     sa = sx.descriptors[np.asarray(A, dtype=np.int64)]
@@ -349,7 +346,7 @@ def signature_mismatch(sx: "ShapeMetric", sy: "ShapeMetric", A: np.ndarray) -> n
 
 
 def search_subsets(coarse_stages=DEFAULT_COARSE_STAGES, search_vertices: int | None = None) -> list[int]:
-    """Sizes of the vertex subsets (:meth:`ShapeMetric.subset <gromov.gh.ShapeMetric.subset>`)
+    """Sizes of the vertex subsets (:meth:`ShapeMetric.subset <gromov.shape_metric.ShapeMetric.subset>`)
     that :func:`gromov.match` searches on with these options, so that they can be computed
     once per shape."""
     if search_vertices is not None:
@@ -378,13 +375,6 @@ def anchored_images(DX: np.ndarray, P: np.ndarray, DY_rows: np.ndarray) -> np.nd
     ``DX`` must be symmetric (its rows ``P`` are read for its columns).
     """
     return _anchored(*_anchor_rows(DX, P), DY_rows)
-
-
-def _anchor_rows(DX: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(DX[P], column sums of DX[P]**2)``: what :func:`anchored_images` reads of X for the
-    anchors ``P`` (``ShapeMetric._anchors`` keeps them for a shape's samples)."""
-    At = DX[P]                                               # (M, n_X) = DX[:, P].T
-    return At, (At * At).sum(0)
 
 
 def _anchored(At: np.ndarray, sq: np.ndarray, DY_rows: np.ndarray) -> np.ndarray:
@@ -470,7 +460,7 @@ class _Starts:
 
 
 def _self_reflection(s: "ShapeMetric", n_samples: int, seed: int) -> np.ndarray | None:
-    """:meth:`ShapeMetric.symmetry <gromov.gh.ShapeMetric.symmetry>`: the search from the shape
+    """:meth:`ShapeMetric.symmetry <gromov.shape_metric.ShapeMetric.symmetry>`: the search from the shape
     to itself among orientation-reversing starts, then GMDS and the involution repairs."""
     if not s.normals[1] or n_samples > s.mesh.n_vertices:
         return None

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..evaluate import image_errors
-from ..gh import MatchResult, ShapeMetric
+from ..match_result import MatchResult
+from ..shape_metric import ShapeMetric
 
 __all__ = ["CorrespondenceQuality", "correspondence_distortion", "error_curve"]
 

@@ -22,9 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gh import (RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, _match, _upgrade_options, check_rank_residual,
-                  match_options_for, search_subsets)
-from ..search import SearchOptions
+from .._defaults import RANK_RESIDUAL, RANK_TAU_SCALE
+from ..gh import _match, _upgrade_options, check_rank_residual, match_options_for
+from ..search import SearchOptions, search_subsets
+from ..shape_metric import ShapeMetric
 
 __all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
@@ -163,9 +164,9 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
 
     ``shapes`` are meshes, point clouds, paths or :class:`ShapeMetric` objects (whose metric must be
     ``metric``); returns the prepared ``ShapeMetric`` objects in the same order. ``subsets``:
-    sizes of the vertex subsets the initial search runs on (:func:`gromov.gh.search_subsets`).
+    sizes of the vertex subsets the initial search runs on (:func:`gromov.search.search_subsets`).
     ``rank_tau_scale``: also the heat distance recognition measures with
-    (:meth:`ShapeMetric.ranking_surface <gromov.gh.ShapeMetric.ranking_surface>`).
+    (:meth:`ShapeMetric.ranking_surface <gromov.shape_metric.ShapeMetric.ranking_surface>`).
     ``jobs``: with the diffusion metric, shapes are prepared in that many forked worker
     processes (:data:`PARALLEL_PREPARE`), with the same values as in this one.
     """
@@ -316,7 +317,7 @@ def match_pairs(shapes, pairs, metric: str = "diffusion", *, n_samples: int = 10
     Each shape is prepared once (as in :func:`gh_matrix`); pairs run in ``jobs`` forked
     worker processes. Returns the :class:`gromov.MatchResult` of each pair, in order. As in
     :func:`gromov.match`, prepared shapes are measured in the correspondence's metric
-    (:meth:`ShapeMetric.for_correspondence <gromov.gh.ShapeMetric.for_correspondence>`), and
+    (:meth:`ShapeMetric.for_correspondence <gromov.shape_metric.ShapeMetric.for_correspondence>`), and
     shapes not prepared yet get the correspondence's metric options, or without
     ``metric_options`` those of the prepared ones (:func:`gromov.gh.match_options_for`).
     """

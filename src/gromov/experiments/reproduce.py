@@ -49,13 +49,15 @@ import numpy as np
 
 from .. import perturb as _perturb
 from .._atomic import atomic_folder, atomic_write_text
+from .._defaults import RANK_RESIDUAL, RANK_TAU_SCALE
 from .._json import finite
 from ..errors import GromovError
-from ..gh import RANK_RESIDUAL, RANK_TAU_SCALE, ShapeMetric, check_rank_residual, check_rank_tau_scale
+from ..gh import check_rank_residual, check_rank_tau_scale
 from ..mesh import Mesh
 from ..metrics import DIFFUSION_FILL_HOLES, metric_solver
 from ..metrics.diffusion import correspondence_options
 from ..resolution import WorkingMesh, simplify
+from ..shape_metric import ShapeMetric
 from . import datasets
 from .pairwise import available_cpus, gh_matrix, match_pairs, prepare
 from .recognition import (LOCAL_SCALING_K, errors_at, local_roc, mds_map, plot_mds, plot_roc, roc,
