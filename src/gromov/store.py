@@ -42,12 +42,14 @@ from pathlib import Path
 import numpy as np
 
 from ._atomic import atomic_write_bytes
+from ._defaults import DEFAULT_RESOLUTION
 from ._version import __version__
 from .errors import GromovError
-from .gh import DEFAULT_RESOLUTION, ShapeMetric, _match
+from .gh import _match   # its parameters: what a pair is keyed by (match_options_key)
 from .gmds import EmbeddedDistance
 from .mesh import Mesh, PointCloud, as_shape
 from .resolution import WorkingCloud, WorkingMesh
+from .shape_metric import ShapeMetric
 
 __all__ = ["CATALOGUE", "FORMAT", "PAIR_ARRAYS", "PairRecord", "ShapeStore", "StoreEntry", "StoreError",
            "file_sha256"]
