@@ -303,7 +303,7 @@ def test_units_option(tmp_path, capsys):
 
 
 def test_class_from_name():
-    from gromov.cli import class_from_name
+    from gromov.cli.collection import class_from_name
 
     assert class_from_name("data/tosca/cat0.off.gz") == "cat"
     assert class_from_name("david12.off") == "david"
@@ -314,7 +314,7 @@ def test_class_from_name():
 
 
 def test_short_names_tell_equal_stems_apart():
-    from gromov.cli import _short_names
+    from gromov.cli.collection import _short_names
 
     assert _short_names(["a/cat0.off", "b/cat1.ply"]) == ["cat0", "cat1"]
     assert _short_names(["x/a/long1.off", "x/b/long1.off", "c/dog.off"]) == ["a/long1", "b/long1", "dog"]

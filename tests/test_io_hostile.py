@@ -231,7 +231,7 @@ def test_max_decompressed_option_errors(tmp_path, capsys, value, match):
 @pytest.mark.parametrize("text,size", [("4G", 4 * 2**30), ("500m", 500 * 2**20),
                                        ("1.5 KiB", 1536), ("2GB", 2 * 2**30), ("1000", 1000)])
 def test_max_decompressed_sizes(text, size):
-    from gromov.cli import _size
+    from gromov.cli._args import _size
 
     assert _size(text) == size
 

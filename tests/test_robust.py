@@ -387,7 +387,7 @@ def test_metrics_scale_exactly_up_to_the_limit():
 
 def test_json_output_is_standard_json(tmp_path, capsys):
     """--json prints standard JSON only: a value that is not a number is null, never NaN."""
-    from gromov.cli import _dumps
+    from gromov.cli._common import _dumps
     from gromov.shapes import torus
 
     assert _dumps({"a": float("nan"), "b": [np.inf, np.float64(1.5)], "c": np.int64(2)}) == \

@@ -1,0 +1,486 @@
+"""The commands on a collection of shapes: ``gromov index`` (a shape store), ``gromov search``
+(a query's nearest shapes in it) and ``gromov pairwise`` (all pairs: nearest neighbours, EER,
+an MDS map)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import atomic_path, atomic_savez_compressed
+from .._defaults import DEFAULT_RESOLUTION, PROFILE_SLACK, RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE, TRIANGLE_SLACK
+from ..errors import GromovError
+from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
+                    _positive_float, _positive_int, _rank_tau_scale)
+from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _close_store,
+                      _dumps, _load, _open_store, _stem)
+
+
+def class_from_name(path: str) -> str:
+    """A shape's class read from its file name: the stem without trailing digits and
+    separators (``cat0.off.gz`` -> ``cat``, ``kid_12.ply`` -> ``kid``); the whole stem when
+    nothing is left."""
+    stem = _stem(path)
+    cls = stem.rstrip("0123456789").rstrip("-_., ")
+    return cls or stem
+
+
+def _short_names(paths: list[str]) -> list[str]:
+    """Names to draw beside the shapes: the file stems, or, where two stems are equal, the
+    shortest trailing parts of the paths that tell them apart."""
+    parts = [Path(p).parts[:-1] + (_stem(p),) for p in paths]
+    names = []
+    for i, pp in enumerate(parts):
+        for k in range(1, len(pp) + 1):
+            tail = pp[-k:]
+            if all(q[-k:] != tail for j, q in enumerate(parts) if j != i):
+                break
+        names.append("/".join(tail))
+    return names
+
+
+def _stored_shapes(store, args, options: dict, progress: bool, files: list | None = None) -> list:
+    """Each file's ShapeMetric from the store (loaded and computed only when not stored yet),
+    checked as ``pairwise`` checks loaded files. ``files``: these instead of ``args.files``."""
+    files = list(args.files if files is None else files)
+    if getattr(args, "neighbors", None) is not None:   # (a user error found before any metric)
+        _check_neighbors(args, [_load(f, args) for f in files])
+    shapes = store.shapes(files, args.metric, resolution=args.resolution, metric_options=options,
+                          rank_tau_scale=args.rank_tau_scale, progress=progress)
+    for path, s in zip(files, shapes):
+        if getattr(args, "samples", 0) > s.mesh.n_vertices:
+            raise _UserError(f"--samples {args.samples} is more than the {s.mesh.n_vertices} vertices "
+                             f"of the working set of {path}")
+    return shapes
+
+
+def cmd_index(args) -> int:
+    options = _metric_options(args)
+    t = time.perf_counter()
+    store, handler = _open_store(args)
+    try:
+        _stored_shapes(store, args, options, progress=not args.quiet)
+        size = sum(e.bytes for e in store.entries())
+    finally:
+        _close_store(store, handler)
+    if not args.quiet:
+        n = len(args.files)
+        print(f"{n} file{'s' if n != 1 else ''} in {args.store}: {store.computed} computed, {store.reused} "
+              f"read back; {time.perf_counter() - t:.1f} s; {size / 1e6:.1f} MB of entries")
+    return 0
+
+
+def _index_parser(sub) -> None:
+    q = sub.add_parser("index", help="compute each shape's working mesh and metric once and keep "
+                                     "them in a shape store, for pairwise --store")
+    q.add_argument("files", nargs="+", metavar="FILE", help="meshes or point clouds")
+    q.add_argument("--store", required=True, metavar="DIR",
+                   help="the store's folder (created if missing): catalogue.sqlite and one .npz "
+                        "per shape and set of options")
+    _add_metric_args(q)
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
+
+    q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
+                   help=f"heat-kernel diffusion: also keep the heat distance at S times the diffusion "
+                        f"time that pairwise ranks by (default {RANK_TAU_SCALE:g}, as pairwise)")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    _add_input_args(q)
+    q.set_defaults(func=cmd_index)
+
+
+def cmd_search(args) -> int:
+    from ..retrieval import nearest
+
+    if not (Path(args.store) / "catalogue.sqlite").is_file():
+        raise _UserError(f"no shape store in {args.store}: gromov index FILES --store {args.store} makes one")
+    options = _metric_options(args)
+    t = time.perf_counter()
+    store, handler = _open_store(args)
+    try:
+        r = nearest(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
+                    resolution=args.resolution, metric_options=options, rank_by=args.rank_by,
+                    rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual, prune=args.prune,
+                    slack=args.slack, triangle_slack=args.triangle_slack,
+                    progress=not (args.quiet or args.json))
+    finally:
+        _close_store(store, handler)
+    seconds = time.perf_counter() - t
+    if args.json:
+        print(_dumps({"query": args.query, "store": args.store, "k": args.k, **r.to_dict(),
+                      "seconds": seconds}))
+        return 0
+    n = r.full_matches + r.skipped
+    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+    how = ("exact" if r.exact else "by the profile gap" + (f" and {r.known_pairs:,} recorded distances between "
+                                                          "them" if r.known_pairs else "") + ": not exact")
+    print(f"{len(r.neighbors)} nearest of {n} shapes by {what}; {r.full_matches} matched, {r.skipped} "
+          f"skipped ({how}), {seconds:.1f} s")
+    width = max(len(x.name) for x in r.neighbors)
+    for i, x in enumerate(r.neighbors, 1):
+        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.4%}")
+    return 0
+
+
+def _search_parser(sub) -> None:
+    q = sub.add_parser("search", help="the shapes of a shape store nearest to a query, skipping the "
+                                      "pairs a per-shape bound rules out")
+    q.add_argument("query", help="a mesh or point cloud (left out of its own results if it is in the store)")
+    q.add_argument("--store", required=True, metavar="DIR", help="a shape store made by gromov index")
+    q.add_argument("-k", type=_positive_int, default=5, help="neighbours to return (default 5)")
+    _add_metric_args(q)
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count the store was indexed with (default {DEFAULT_RESOLUTION})")
+    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
+                   help="rank by the trimmed distortion of each pair's correspondence (default, as "
+                        "pairwise) or by the GH estimate")
+    q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
+                   help=f"heat-kernel diffusion: the trimmed ranking's heat distance at S times the "
+                        f"diffusion time (default {RANK_TAU_SCALE:g}, as pairwise and index)")
+    q.add_argument("--rank-residual", choices=RANK_RESIDUALS, default=RANK_RESIDUAL,
+                   help=f"log ratios or differences of corresponding distances (default {RANK_RESIDUAL})")
+    q.add_argument("--prune", choices=("profile", "bound", "none"), default="profile",
+                   help="skip the shapes whose lower bound or profile gap rules them out (profile: "
+                        "default; recall 1.0 on the validation sets, not guaranteed), only those "
+                        "whose lower bound does (bound: the same neighbours as matching every "
+                        "shape), or none")
+    q.add_argument("--slack", type=_positive_float, default=PROFILE_SLACK, metavar="S",
+                   help="--prune profile: skip a shape when S times its profile gap exceeds the "
+                        f"k-th distance found (default {PROFILE_SLACK:g}; larger skips more)")
+    q.add_argument("--triangle-slack", type=_nonnegative_float, default=TRIANGLE_SLACK, metavar="T",
+                   help="--prune profile: skip a shape also when T times |d(query, m) - d(m, shape)| "
+                        "exceeds the k-th distance found, for the shapes m matched so far whose "
+                        "distance to it the store has recorded (gromov pairwise records them; "
+                        f"default {TRIANGLE_SLACK:g}; 0: off)")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_input_args(q)
+    q.set_defaults(func=cmd_search)
+
+
+def cmd_pairwise(args) -> int:
+    from ..experiments.recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, roc
+
+    n = len(args.files)
+    if n < 2:
+        raise _UserError("pairwise needs at least two meshes")
+    import os
+
+    real = [os.path.realpath(f) for f in args.files]
+    if len(set(real)) < n:
+        dup = sorted({f for f, r in zip(args.files, real) if real.count(r) > 1})
+        raise _UserError(f"a file is given twice: {', '.join(dup)}")
+    labels = _pairwise_labels(args, n)
+    if args.local_scaling is not None and labels is None:
+        raise _UserError("--local-scaling sets the neighbour of the locally scaled EER: give "
+                         "--labels or --labels-from-names")
+    k_local = LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling
+    outs = [Path(f) for f in (args.out, args.mds) if f]
+    if args.out:
+        if not args.out.endswith((".npz", ".csv")):
+            raise _UserError(f"--out must end in .npz or .csv, got {args.out!r}")
+        if Path(args.out).is_dir():
+            raise _UserError(f"--out {args.out} is a folder")
+        if Path(args.out).parent and not Path(args.out).parent.exists():
+            raise _UserError(f"output folder {Path(args.out).parent} does not exist")
+    if args.k is not None and args.mds:
+        raise _UserError("--mds needs every pair; -k matches only each shape's nearest")
+    if args.mds:
+        _check_png(args.mds, "--mds")
+        if n < 3:
+            raise _UserError("--mds needs at least three shapes")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise _UserError("--mds needs matplotlib: pip install 'gromov[plot]'") from None
+    dask = args.dask is not None or args.scheduler is not None
+    if dask and args.k is not None:
+        raise _UserError(f"-k is not available with {'--dask' if args.dask is not None else '--scheduler'}: "
+                         "use --jobs")
+    if dask:
+        import importlib.util
+
+        if importlib.util.find_spec("distributed") is None:
+            raise _UserError(f"{'--dask' if args.dask is not None else '--scheduler'} needs dask.distributed: "
+                             "pip install 'gromov[dask]'")
+    t = time.perf_counter()
+    # a shape that cannot be used is left out, with its reason; the others go on
+    loaded, unusable = _usable_shapes(args)
+    files = [f for f in args.files if f not in unusable]
+    _check_usable(files, n, unusable)
+    _check_neighbors(args, list(loaded.values()))
+    options = _metric_options(args)
+    store, handler = _open_store(args)
+    try:
+        if store is None and not dask:   # (with Dask the matrices are on the workers)
+            _check_memory([min(args.resolution, loaded[f].n_vertices) for f in files],
+                          f"--resolution {args.resolution}")
+        t = time.perf_counter()
+        try:
+            r = _pairwise_matrix(args, files, loaded, store, options, dask)
+        except GromovError:   # a shape's metric cannot be computed: find which, go on without them
+            failed = _failing_shapes(args, files, loaded, options)
+            if not failed:
+                raise
+            unusable.update(failed)
+            files = [f for f in files if f not in failed]
+            _check_usable(files, n, unusable)
+            r = _pairwise_matrix(args, files, loaded, store, options, dask)
+    finally:
+        _close_store(store, handler)
+    seconds = time.perf_counter() - t
+    for f, why in unusable.items():
+        print(f"gromov: skipped {f}: {why}", file=sys.stderr)
+    if unusable:
+        keep = [i for i, f in enumerate(args.files) if f not in unusable]
+        labels = None if labels is None else [labels[i] for i in keep]
+        n = len(files)
+    D = r.trimmed if args.rank_by == "trimmed" else r.relative
+    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+    # (with -k the pairs not matched are NaN: never nearest)
+    nearest = np.argmin(np.where(np.isnan(D), np.inf, D) + np.diag(np.full(n, np.inf)), axis=1)
+    names = list(files)
+    result = {"files": names, "skipped": unusable, "metric": args.metric, "metric_options": options,
+              "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
+              "ranked_by": args.rank_by, "rank_tau_scale": r.rank_tau_scale,
+              "rank_residual": r.rank_residual,
+              "distance": r.distance.tolist(), "relative_distance": r.relative.tolist(),
+              "relative_trimmed_distance": r.trimmed.tolist(),
+              "nearest": [names[j] for j in nearest], "labels": labels,
+              "seconds": seconds}
+    if args.k is not None:
+        result.update(k=args.k, pairs_matched=n * (n - 1) // 2 - r.skipped, pairs_skipped=r.skipped)
+    if store is not None:
+        result["store"] = {"path": args.store, "shapes_read": store.reused, "pairs_read": store.pairs_reused}
+    if labels is not None:
+        lab = np.array(labels)
+        result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
+        same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
+        result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
+                      local_scaling_k=None, errors_at_eer_local=None)
+        if same.any() and not same.all() and args.k is None:   # else all one class, or every shape its
+            # own, or not every pair matched: no EER
+            curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
+            local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
+            result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
+                          eer_trimmed=curves["trimmed"].eer,
+                          errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold),
+                          eer_local=local.eer, local_scaling_k=k_used,
+                          errors_at_eer_local=errors_at(scaled, lab, local.eer_threshold))
+    if args.out:
+        out = Path(args.out)
+        if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
+            _write_csv(out, names, D, "relative_trimmed_distance" if args.rank_by == "trimmed"
+                       else "relative_distance")
+        else:
+            nan = float("nan")
+            atomic_savez_compressed(out, files=np.array(names), distance=r.distance,
+                                    relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
+                                    labels=np.array(labels if labels is not None else [], dtype=str),
+                                    ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
+                                    eer=nan if result.get("eer") is None else result["eer"],
+                                    eer_local=nan if result.get("eer_local") is None else result["eer_local"],
+                                    local_scaling_k=result.get("local_scaling_k") or 0,
+                                    metric=args.metric, options=json.dumps(options),
+                                    rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
+                                    rank_residual=r.rank_residual,
+                                    n_samples=args.samples, resolution=args.resolution, seed=args.seed)
+    if args.mds:
+        from ..experiments.recognition import plot_mds
+
+        plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
+                 args.mds, names=_short_names(names),
+                 title=f"MDS of {n} shapes, {args.metric}, {what}")
+    status = 1 if unusable and args.strict else 0
+    if args.json:
+        print(_dumps(result))
+        return status
+    pairs = (f"{n * (n - 1) // 2} pairs" if args.k is None else
+             f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)")
+    left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
+    print(f"{n} shapes{left_out}, {pairs}, {args.metric} metric, {args.samples} samples per "
+          f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
+    if store is not None:
+        print(f"  store {args.store}: {store.reused} of {n} shapes and {store.pairs_reused} of "
+              f"{n * (n - 1) // 2} pairs read from it")
+    width = max(len(f) for f in names)
+    for i, f in enumerate(names):
+        j = nearest[i]
+        mark = ""
+        if labels is not None and labels[j] != labels[i]:
+            mark = f"   <- another class ({labels[i]} vs {labels[j]})"
+        print(f"  {f:<{width}}  nearest {names[j]} ({r.relative[i, j]:.4%}; trimmed "
+              f"{r.trimmed[i, j]:.4%}){mark}")
+    if labels is not None:
+        if result["eer"] is None:
+            why = ("needs every pair; -k matched only each shape's nearest" if args.k is not None else
+                   "needs two shapes of a class and two classes")
+            print(f"  labels: no equal error rate ({why}); "
+                  f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
+        else:
+            other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
+            print(f"  equal error rate {result['eer']:.2%} (ranked by the other: {other:.2%}; "
+                  f"locally scaled, k = {result['local_scaling_k']}: {result['eer_local']:.2%}), "
+                  f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
+            from ..experiments.report import errors_text
+
+            print(f"  at its threshold: {errors_text(result['errors_at_eer'])}")
+    for f in outs:
+        print(f"  wrote {f}")
+    return status
+
+
+def _pairwise_labels(args, n: int) -> list[str] | None:
+    if args.labels is not None and args.labels_from_names:
+        raise _UserError("give either --labels or --labels-from-names, not both")
+    if args.labels_from_names:
+        return [class_from_name(f) for f in args.files]
+    if args.labels is None:
+        return None
+    labels = [x.strip() for x in args.labels.split(",")]
+    if len(labels) != n or not all(labels):
+        raise _UserError(f"--labels needs one non-empty label per file ({n}), got {len(labels)}: "
+                         f"{args.labels!r}")
+    return labels
+
+
+def _one_line(exc: BaseException) -> str:
+    """An error's message on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _check_usable(files: list, n: int, unusable: dict) -> None:
+    """A user error naming every left-out file when fewer than two of the ``n`` remain."""
+    if len(files) < 2:
+        raise _UserError(f"pairwise needs at least two usable shapes; {len(files)} of {n} can be used ("
+                         + "; ".join(f"{f}: {why}" for f, why in unusable.items()) + ")")
+
+
+def _usable_shapes(args) -> tuple[dict, dict]:
+    """``({file: shape}, {file: why not})``: each file of a collection loaded and checked as
+    ``pairwise`` needs it (read, enough working vertices for ``--samples``, finite distances
+    between its pieces); a file that fails is named with its reason and the others go on."""
+    loaded, unusable = {}, {}
+    for path in args.files:   # meshes or point clouds (their images are then points)
+        try:
+            shape = _load(path, args)
+            work = min(args.resolution, shape.n_vertices)
+            if args.samples > work:
+                raise _UserError(f"--samples {args.samples} is more than the {work} vertices of its "
+                                 "working set")
+            _check_pieces(args, path, shape)   # simplification keeps the components
+        except (GromovError, _UserError, OSError) as exc:
+            unusable[path] = _one_line(exc).removeprefix(f"{path}: ")
+            continue
+        loaded[path] = shape
+    return loaded, unusable
+
+
+def _pairwise_matrix(args, files: list, loaded: dict, store, options: dict, dask: bool):
+    """:func:`gromov.experiments.gh_matrix` of the usable files, as ``pairwise``'s options say."""
+    from ..experiments.pairwise import available_cpus, gh_matrix
+
+    if store is None and not dask:
+        shapes = [loaded[f] for f in files]
+    elif dask:   # each worker reads its shapes from the store, or computes and adds them
+        shapes = list(files)
+    else:   # read from the store; loaded and computed only when not stored yet
+        shapes = _stored_shapes(store, args, options, progress=not (args.quiet or args.json), files=files)
+    if dask:
+        from .._dask import client_for
+
+        cluster = client_for(scheduler=args.scheduler, n_workers=args.dask)
+    else:
+        import contextlib
+
+        cluster = contextlib.nullcontext()
+    with cluster as client:
+        return gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
+                         metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
+                         progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
+                         rank_residual=args.rank_residual, store=store, client=client, k=args.k)
+
+
+def _failing_shapes(args, files: list, loaded: dict, options: dict) -> dict:
+    """``{file: why}`` for the files whose metric cannot be computed, each tried on its own."""
+    from ..experiments.pairwise import prepare
+
+    failed = {}
+    for f in files:
+        try:
+            prepare([loaded[f]], args.metric, n_samples=args.samples, seed=args.seed,
+                    resolution=args.resolution, metric_options=options,
+                    rank_tau_scale=args.rank_tau_scale)
+        except GromovError as exc:
+            failed[f] = _one_line(exc).removeprefix(f"{f}: ")
+    return failed
+
+
+def _write_csv(path: Path, names: list[str], matrix: np.ndarray, what: str) -> None:
+    import csv
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow([what] + names)
+        for name, row in zip(names, matrix):
+            w.writerow([name] + [repr(float(v)) for v in row])
+
+
+def _pairwise_parser(sub) -> None:
+    q = sub.add_parser("pairwise", help="Gromov-Hausdorff distances between all pairs of a set of "
+                                        "shapes; nearest neighbours, EER and an MDS map")
+    q.add_argument("files", nargs="+", metavar="FILE", help="meshes (two or more)")
+    _add_metric_args(q)
+    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
+    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+                   help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--strict", action="store_true",
+                   help="exit with status 1 when a shape cannot be used (by default it is named "
+                        "with its reason, left out, and the others are matched)")
+    workers = q.add_mutually_exclusive_group()
+    workers.add_argument("--jobs", type=_positive_int, default=None,
+                         help="worker processes for the pairs (default: the CPUs available); "
+                              "refused with --dask or --scheduler")
+    workers.add_argument("--dask", type=_positive_int, default=None, metavar="N",
+                         help="run on a Dask cluster of N worker processes of one thread each, "
+                              "started on this machine for this run: each worker computes (or reads "
+                              "from --store) its share of the shapes and keeps them, and each pair "
+                              "runs where its shapes are; the same results as --jobs "
+                              "(pip install 'gromov[dask]')")
+    workers.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                         help="run on the workers of the running Dask scheduler at ADDRESS (e.g. "
+                              "tcp://host:8786), as --dask does; they must see the files and --store "
+                              "at the same absolute paths")
+    q.add_argument("--labels", default=None, metavar="L,L,...",
+                   help="the class of each file, in order: adds the equal error rate and the "
+                        "nearest-neighbour accuracy")
+    q.add_argument("--labels-from-names", action="store_true",
+                   help="classes from the file names without trailing digits (cat0.off -> cat)")
+    q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
+                   help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
+                        "correspondence (default, as gromov reproduce) or by the GH estimate")
+    _add_rank_args(q)
+    q.add_argument("--out", default=None, metavar="FILE",
+                   help=".npz with all matrices, or .csv with the matrix the results rank by "
+                        "(named in its first cell)")
+    q.add_argument("--mds", default=None, metavar="FILE.png", help="draw a 2-D MDS map of the shapes")
+    q.add_argument("-k", "--nearest", dest="k", type=_positive_int, default=None, metavar="K",
+                   help="match only the pairs that can be among some shape's K nearest (the pruning "
+                        "of gromov search: recall 1.0 on the validation sets, not guaranteed); the "
+                        "others are empty (NaN) in the matrices and not counted; no equal error rate "
+                        "or MDS map (they need every pair); refused with --dask or --scheduler")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.add_argument("--store", default=None, metavar="DIR",
+                   help="shape store (gromov index): read each shape's metric from it or add it, "
+                        "and record each pair as it finishes; a run stopped at any point continues "
+                        "where it stopped")
+    q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_input_args(q)
+    q.set_defaults(func=cmd_pairwise)
