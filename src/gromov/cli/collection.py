@@ -165,9 +165,38 @@ def _search_parser(sub) -> None:
 
 
 def cmd_pairwise(args) -> int:
-    from ..experiments.recognition import LOCAL_SCALING_K, errors_at, local_roc, mds_map, roc
-
     n = len(args.files)
+    labels, k_local, dask = _pairwise_arguments(args, n)
+    # a shape that cannot be used is left out, with its reason; the others go on
+    loaded, unusable = _usable_shapes(args)
+    files = [f for f in args.files if f not in unusable]
+    _check_usable(files, n, unusable)
+    _check_neighbors(args, list(loaded.values()))
+    options = _metric_options(args)
+    r, files, store, seconds = _pairwise_run(args, files, loaded, unusable, options, dask)
+    for f, why in unusable.items():
+        print(f"gromov: skipped {f}: {why}", file=sys.stderr)
+    if unusable:
+        keep = [i for i, f in enumerate(args.files) if f not in unusable]
+        labels = None if labels is None else [labels[i] for i in keep]
+    D = r.trimmed if args.rank_by == "trimmed" else r.relative
+    result, nearest = _pairwise_result(args, r, files, unusable, labels, options, store, seconds, D)
+    if labels is not None:
+        _add_recognition(result, args, r, D, nearest, k_local)
+    _write_pairwise(args, r, result, D)
+    status = 1 if unusable and args.strict else 0
+    if args.json:
+        print(_dumps(result))
+        return status
+    _print_pairwise(args, r, result, nearest, store)
+    return status
+
+
+def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
+    """``(labels, k_local, dask)``: ``pairwise``'s arguments checked before any file is read
+    (each file once, labels, ``--local-scaling``, ``--out``, ``--mds``, ``-k``, Dask)."""
+    from ..experiments.recognition import LOCAL_SCALING_K
+
     if n < 2:
         raise _UserError("pairwise needs at least two meshes")
     import os
@@ -181,7 +210,6 @@ def cmd_pairwise(args) -> int:
         raise _UserError("--local-scaling sets the neighbour of the locally scaled EER: give "
                          "--labels or --labels-from-names")
     k_local = LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling
-    outs = [Path(f) for f in (args.out, args.mds) if f]
     if args.out:
         if not args.out.endswith((".npz", ".csv")):
             raise _UserError(f"--out must end in .npz or .csv, got {args.out!r}")
@@ -209,13 +237,13 @@ def cmd_pairwise(args) -> int:
         if importlib.util.find_spec("distributed") is None:
             raise _UserError(f"{'--dask' if args.dask is not None else '--scheduler'} needs dask.distributed: "
                              "pip install 'gromov[dask]'")
-    t = time.perf_counter()
-    # a shape that cannot be used is left out, with its reason; the others go on
-    loaded, unusable = _usable_shapes(args)
-    files = [f for f in args.files if f not in unusable]
-    _check_usable(files, n, unusable)
-    _check_neighbors(args, list(loaded.values()))
-    options = _metric_options(args)
+    return labels, k_local, dask
+
+
+def _pairwise_run(args, files: list, loaded: dict, unusable: dict, options: dict, dask: bool):
+    """``(PairwiseGH, files, store, seconds)``: the matrices of the usable files, the store open
+    for the run. Where a shape's metric cannot be computed, that shape is added to ``unusable``
+    with its reason and the others are matched without it."""
     store, handler = _open_store(args)
     try:
         if store is None and not dask:   # (with Dask the matrices are on the workers)
@@ -230,19 +258,18 @@ def cmd_pairwise(args) -> int:
                 raise
             unusable.update(failed)
             files = [f for f in files if f not in failed]
-            _check_usable(files, n, unusable)
+            _check_usable(files, len(args.files), unusable)
             r = _pairwise_matrix(args, files, loaded, store, options, dask)
     finally:
         _close_store(store, handler)
-    seconds = time.perf_counter() - t
-    for f, why in unusable.items():
-        print(f"gromov: skipped {f}: {why}", file=sys.stderr)
-    if unusable:
-        keep = [i for i, f in enumerate(args.files) if f not in unusable]
-        labels = None if labels is None else [labels[i] for i in keep]
-        n = len(files)
-    D = r.trimmed if args.rank_by == "trimmed" else r.relative
-    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+    return r, files, store, time.perf_counter() - t
+
+
+def _pairwise_result(args, r, files: list, unusable: dict, labels, options: dict, store, seconds: float,
+                     D: np.ndarray) -> tuple[dict, np.ndarray]:
+    """``(result, nearest)``: the JSON object of ``pairwise --json`` (without the recognition's
+    fields) and each shape's nearest other by ``D``, the matrix the results rank by."""
+    n = len(files)
     # (with -k the pairs not matched are NaN: never nearest)
     nearest = np.argmin(np.where(np.isnan(D), np.inf, D) + np.diag(np.full(n, np.inf)), axis=1)
     names = list(files)
@@ -258,21 +285,36 @@ def cmd_pairwise(args) -> int:
         result.update(k=args.k, pairs_matched=n * (n - 1) // 2 - r.skipped, pairs_skipped=r.skipped)
     if store is not None:
         result["store"] = {"path": args.store, "shapes_read": store.reused, "pairs_read": store.pairs_reused}
-    if labels is not None:
-        lab = np.array(labels)
-        result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
-        same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
-        result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
-                      local_scaling_k=None, errors_at_eer_local=None)
-        if same.any() and not same.all() and args.k is None:   # else all one class, or every shape its
-            # own, or not every pair matched: no EER
-            curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
-            local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
-            result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
-                          eer_trimmed=curves["trimmed"].eer,
-                          errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold),
-                          eer_local=local.eer, local_scaling_k=k_used,
-                          errors_at_eer_local=errors_at(scaled, lab, local.eer_threshold))
+    return result, nearest
+
+
+def _add_recognition(result: dict, args, r, D: np.ndarray, nearest: np.ndarray, k_local: int) -> None:
+    """With labels: the nearest-neighbour accuracy and, where every pair was matched and there
+    are two shapes of a class and two classes, the equal error rates (ranked by ``D``, by the
+    other matrix, and after local scaling) and the errors at the threshold, into ``result``."""
+    from ..experiments.recognition import errors_at, local_roc, roc
+
+    lab = np.array(result["labels"])
+    n = len(lab)
+    result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
+    same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
+    result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
+                  local_scaling_k=None, errors_at_eer_local=None)
+    if same.any() and not same.all() and args.k is None:   # else all one class, or every shape its
+        # own, or not every pair matched: no EER
+        curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
+        local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
+        result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
+                      eer_trimmed=curves["trimmed"].eer,
+                      errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold),
+                      eer_local=local.eer, local_scaling_k=k_used,
+                      errors_at_eer_local=errors_at(scaled, lab, local.eer_threshold))
+
+
+def _write_pairwise(args, r, result: dict, D: np.ndarray) -> None:
+    """``--out`` (.npz with every matrix, or .csv with ``D``, the one the results rank by) and
+    ``--mds`` (a 2-D MDS map of ``D``)."""
+    names, labels, n = result["files"], result["labels"], len(result["files"])
     if args.out:
         out = Path(args.out)
         if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
@@ -287,25 +329,30 @@ def cmd_pairwise(args) -> int:
                                     eer=nan if result.get("eer") is None else result["eer"],
                                     eer_local=nan if result.get("eer_local") is None else result["eer_local"],
                                     local_scaling_k=result.get("local_scaling_k") or 0,
-                                    metric=args.metric, options=json.dumps(options),
+                                    metric=args.metric, options=json.dumps(result["metric_options"]),
                                     rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
                                     rank_residual=r.rank_residual,
                                     n_samples=args.samples, resolution=args.resolution, seed=args.seed)
     if args.mds:
-        from ..experiments.recognition import plot_mds
+        from ..experiments.recognition import mds_map, plot_mds
 
+        what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
         plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
                  args.mds, names=_short_names(names),
                  title=f"MDS of {n} shapes, {args.metric}, {what}")
-    status = 1 if unusable and args.strict else 0
-    if args.json:
-        print(_dumps(result))
-        return status
+
+
+def _print_pairwise(args, r, result: dict, nearest: np.ndarray, store) -> None:
+    """``pairwise``'s text output: the run, each shape's nearest, the recognition's scores and
+    the files written."""
+    names, labels, unusable = result["files"], result["labels"], result["skipped"]
+    n = len(names)
+    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
     pairs = (f"{n * (n - 1) // 2} pairs" if args.k is None else
              f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)")
     left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
     print(f"{n} shapes{left_out}, {pairs}, {args.metric} metric, {args.samples} samples per "
-          f"shape, {seconds:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
+          f"shape, {result['seconds']:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
     if store is not None:
         print(f"  store {args.store}: {store.reused} of {n} shapes and {store.pairs_reused} of "
               f"{n * (n - 1) // 2} pairs read from it")
@@ -331,9 +378,9 @@ def cmd_pairwise(args) -> int:
             from ..experiments.report import errors_text
 
             print(f"  at its threshold: {errors_text(result['errors_at_eer'])}")
-    for f in outs:
-        print(f"  wrote {f}")
-    return status
+    for f in (args.out, args.mds):
+        if f:
+            print(f"  wrote {Path(f)}")
 
 
 def _pairwise_labels(args, n: int) -> list[str] | None:
