@@ -553,6 +553,186 @@ def _fan_point(ch_id, ch_xy, nch, v, x, y, al):
     return nch + 1
 
 
+@njit(cache=True, inline="always")
+def _corner(F, FL, Apol, ang, f, j):
+    """Corner ``j`` of face ``f``: its vertex ``c`` and the next two ``a``, ``b``; the polar
+    angle ``A0`` at ``c`` of the edge to ``a``; the polar angles at ``a`` and at ``b`` of their
+    edges to ``c``; the lengths of the edges ``(c, a)``, ``(c, b)``; and ``dot``, the inner
+    product of those two edges (law of cosines)."""
+    c = F[f, j]
+    a = F[f, (j + 1) % 3]
+    b = F[f, (j + 2) % 3]
+    A0 = Apol[f, j]
+    # polar angles at a and at b of their edges to c
+    alA = Apol[f, (j + 1) % 3] + ang[f, (j + 1) % 3]
+    alB = Apol[f, (j + 2) % 3]
+    la = FL[f, (j + 2) % 3]
+    lb = FL[f, (j + 1) % 3]
+    lab = FL[f, j]
+    dot = 0.5 * ((la - lab) * (la + lab) + lb * lb)
+    return c, a, b, A0, alA, alB, la, lb, dot
+
+
+@njit(cache=True, inline="always")
+def _split_obtuse(F, FL, opp, Apol, ang, f, c, a, b, la, bx, by, max_unfold, lo_id, lo_xy, lo_al, hi_id,
+                  hi_xy, hi_al):
+    """The obtuse angle at ``c`` (origin; ``a = (la, 0)`` on the x axis, ``b = (bx, by)`` above
+    it) of face ``f``: unfold the faces across the opposite edge until a vertex lands in the
+    acute section ``{x : <x, a> > 0, <x, b> > 0}``, at most ``max_unfold`` faces.
+
+    Returns ``(mid, Mx, My, Mal, nlo, nhi)``: the vertex that splits the angle (-1 if none was
+    found: a boundary or non-manifold edge met, the vertex behind ``c``, or the budget spent),
+    its planar position and the polar angle at it of its direction to ``c``; and the numbers
+    of visible vertices met on ``a``'s side and on ``b``'s side, written to ``lo_*`` and
+    ``hi_*`` (ids, planar positions, polar angles at them of their directions to ``c``).
+    """
+    mid = -1
+    Mx = 0.0
+    My = 0.0
+    Mal = np.nan
+    nlo = 0
+    nhi = 0
+    p, Px, Py = a, la, 0.0  # window edge (p, r) crossed by the section
+    r, Rx, Ry = b, bx, by
+    Qx, Qy = 0.0, 0.0  # third vertex of the face before the window
+    Lx, Ly, Hx, Hy = la, 0.0, bx, by  # visible angular interval [L, H]
+    g = f
+    for _ in range(max_unfold):
+        k = 0
+        while F[g, k] == p or F[g, k] == r:
+            k += 1
+        h = opp[g, k]
+        if h < 0:
+            break  # boundary or non-manifold edge
+        k = 0
+        while F[h, k] == p or F[h, k] == r:
+            k += 1
+        e = F[h, k]
+        if e == c:
+            break
+        # unfold e across the window, on the side away from Q
+        Ex, Ey, eal = _unfold(F, FL, Apol, ang, h, k, p, Px, Py, r, Rx, Ry, Qx, Qy)
+        dA = Ex * la
+        dB = Ex * bx + Ey * by
+        if dA > 0.0 and dB > 0.0:
+            mid = e  # in the acute section: split the angle by (c, e)
+            Mx = Ex
+            My = Ey
+            Mal = eal
+            break
+        # strictly inside the visible interval (sine of either angle > _EPS)
+        nE = np.sqrt(Ex * Ex + Ey * Ey)
+        visible = ((Lx * Ey - Ly * Ex > _EPS * nE * np.sqrt(Lx * Lx + Ly * Ly))
+                   and (Ex * Hy - Ey * Hx > _EPS * nE * np.sqrt(Hx * Hx + Hy * Hy)))
+        if dA <= 0.0 and dB > 0.0:
+            # e beyond the section on b's side: the section crosses (p, e)
+            Qx, Qy = Rx, Ry
+            r, Rx, Ry = e, Ex, Ey
+            if visible:
+                hi_id[nhi] = e
+                hi_xy[nhi, 0] = Ex
+                hi_xy[nhi, 1] = Ey
+                hi_al[nhi] = eal
+                nhi += 1
+                Hx, Hy = Ex, Ey
+        elif dB <= 0.0 and dA > 0.0:
+            # on a's side: the section crosses (e, r)
+            Qx, Qy = Px, Py
+            p, Px, Py = e, Ex, Ey
+            if visible:
+                lo_id[nlo] = e
+                lo_xy[nlo, 0] = Ex
+                lo_xy[nlo, 1] = Ey
+                lo_al[nlo] = eal
+                nlo += 1
+                Lx, Ly = Ex, Ey
+        else:
+            break  # e behind c: a folded neighbourhood
+        g = h
+    return mid, Mx, My, Mal, nlo, nhi
+
+
+@njit(cache=True, inline="always")
+def _fan(ch_id, ch_xy, a, b, la, bx, by, alA, alB, fan, mid, Mx, My, Mal, nlo, nhi, lo_id, lo_xy, lo_al,
+         hi_id, hi_xy, hi_al):
+    """The fan around ``c`` by increasing angle from ``a`` to ``b``, written to ``ch_id``,
+    ``ch_xy``: ``a``, the visible vertices on ``a``'s side (with ``fan``), the splitting vertex
+    (``mid >= 0``), the visible vertices on ``b``'s side (with ``fan``), ``b``; with the polar
+    angle at each of its direction to ``c``. Returns its length."""
+    nch = 0
+    nch = _fan_point(ch_id, ch_xy, nch, a, la, 0.0, alA)
+    if fan:
+        for t in range(nlo):
+            nch = _fan_point(ch_id, ch_xy, nch, lo_id[t], lo_xy[t, 0], lo_xy[t, 1], lo_al[t])
+    if mid >= 0:
+        nch = _fan_point(ch_id, ch_xy, nch, mid, Mx, My, Mal)
+    if fan:
+        for t in range(nhi - 1, -1, -1):
+            nch = _fan_point(ch_id, ch_xy, nch, hi_id[t], hi_xy[t, 0], hi_xy[t, 1], hi_al[t])
+    nch = _fan_point(ch_id, ch_xy, nch, b, bx, by, alB)
+    return nch
+
+
+@njit(cache=True, inline="always")
+def _fan_stencils(S, G, ns, c, a, b, la, bx, by, A0, alA, alB, mid, Mx, My, Mal, ch_id, ch_xy, nch):
+    """The stencils of the fan around ``c`` (each two consecutive vertices), and Kimmel &
+    Sethian's two virtual triangles of a split angle or the plain triangle of an obtuse one
+    left whole. Returns the new row count of ``S``, ``G`` (:func:`_put_stencil`)."""
+    for t in range(nch - 1):
+        ns = _put_stencil(S, G, ns, c, ch_id[t], ch_id[t + 1], ch_xy[t, 0],
+                          ch_xy[t, 1], ch_xy[t + 1, 0], ch_xy[t + 1, 1], A0,
+                          ch_xy[t, 2], ch_xy[t + 1, 2])
+    if mid >= 0 and nch > 3:
+        # Kimmel & Sethian's two virtual triangles as well
+        ns = _put_stencil(S, G, ns, c, a, mid, la, 0.0, Mx, My, A0, alA, Mal)
+        ns = _put_stencil(S, G, ns, c, mid, b, Mx, My, bx, by, A0, Mal, alB)
+    elif mid < 0 and nch > 2:
+        # and the plain (obtuse) triangle
+        ns = _put_stencil(S, G, ns, c, a, b, la, 0.0, bx, by, A0, alA, alB)
+    return ns
+
+
+@njit(cache=True, inline="always")
+def _wide_stencils(F, FL, opp, Apol, ang, f, j, c, a, b, la, lb, bx, by, A0, alA, alB, S, G, ns, RE, RL, nre):
+    """A wide acute angle at ``c``: the vertex ``e`` beyond the opposite edge, if visible from
+    ``c`` through it, adds the stencils ``(c, a, e)`` and ``(c, e, b)`` and the reversed
+    virtual edge ``(e, c)``. Returns ``(ns, nre)``, ``nre`` -1 when ``RE`` is full."""
+    h = opp[f, j]
+    if h >= 0:
+        k = 0
+        while F[h, k] == a or F[h, k] == b:
+            k += 1
+        e = F[h, k]
+        if e != c:
+            Ex, Ey, eal = _unfold(F, FL, Apol, ang, h, k, a, la, 0.0, b, bx, by, 0.0, 0.0)
+            nE = np.sqrt(Ex * Ex + Ey * Ey)
+            if (Ey > _EPS * nE) and (Ex * by - Ey * bx > _EPS * nE * lb):
+                ns = _put_stencil(S, G, ns, c, a, e, la, 0.0, Ex, Ey, A0, alA, eal)
+                ns = _put_stencil(S, G, ns, c, e, b, Ex, Ey, bx, by, A0, eal, alB)
+                if nre >= RE.shape[0]:
+                    return ns, -1
+                RE[nre, 0] = e
+                RE[nre, 1] = c
+                RL[nre] = nE
+                nre += 1
+    return ns, nre
+
+
+@njit(cache=True, inline="always")
+def _reversed_edges(RE, RL, nre, c, ch_id, ch_xy, nch):
+    """The virtual edges ``(c, x)`` of the fan's inner vertices also update ``x`` from ``c``
+    (the segment lies on the surface both ways): rows ``(x, c)`` of ``RE`` and their lengths in
+    ``RL``. Returns the new row count, -1 when ``RE`` is full."""
+    for t in range(1, nch - 1):
+        if nre >= RE.shape[0]:
+            return -1
+        RE[nre, 0] = ch_id[t]
+        RE[nre, 1] = c
+        RL[nre] = np.sqrt(ch_xy[t, 0] ** 2 + ch_xy[t, 1] ** 2)
+        nre += 1
+    return nre
+
+
 @njit(cache=True)
 def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S, G, RE, RL):
     """Update stencils of every (vertex, incident face), obtuse angles split by unfolding.
@@ -568,6 +748,11 @@ def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S,
     ``RL`` (r,) with the reversed virtual edges ``(x, c)`` and their lengths (``x`` gets
     an edge update from ``c``). ``ang``: the corner angles. An acute angle with cosine
     below ``wide_cos`` also gets the vertex beyond the opposite edge (module docstring).
+
+    Per corner, in named steps: its geometry (:func:`_corner`); an obtuse angle split by
+    unfolding (:func:`_split_obtuse`); the fan around it (:func:`_fan`) and its stencils
+    (:func:`_fan_stencils`); a wide acute angle's extra stencils (:func:`_wide_stencils`);
+    the reversed virtual edges (:func:`_reversed_edges`).
 
     Returns
     -------
@@ -594,18 +779,7 @@ def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S,
     hi_al = np.empty(max_unfold + 1)
     for f in range(m):
         for j in range(3):
-            c = F[f, j]
-            a = F[f, (j + 1) % 3]
-            b = F[f, (j + 2) % 3]
-            A0 = Apol[f, j]
-            # polar angles at a and at b of their edges to c
-            alA = Apol[f, (j + 1) % 3] + ang[f, (j + 1) % 3]
-            alB = Apol[f, (j + 2) % 3]
-            Mal = np.nan
-            la = FL[f, (j + 2) % 3]
-            lb = FL[f, (j + 1) % 3]
-            lab = FL[f, j]
-            dot = 0.5 * ((la - lab) * (la + lab) + lb * lb)
+            c, a, b, A0, alA, alB, la, lb, dot = _corner(F, FL, Apol, ang, f, j)
             if la == 0.0 or lb == 0.0 or lb * lb - (dot / la) ** 2 <= 0.0:
                 # degenerate face: keep its edges (edge updates only, flagged by b_y = 0)
                 if ns >= S.shape[0]:
@@ -615,138 +789,28 @@ def _build_stencils(F, FL, opp, Apol, ang, unfold, max_unfold, fan, wide_cos, S,
                 continue
             bx = dot / la
             by = np.sqrt(lb * lb - bx * bx)
-            mid = -1
-            Mx = 0.0
-            My = 0.0
-            nlo = 0
-            nhi = 0
+            mid, Mx, My, Mal, nlo, nhi = -1, 0.0, 0.0, np.nan, 0, 0
             obtuse = bx < 0.0
             if obtuse and unfold:
-                # obtuse angle at c (origin; a on the x axis, b above it): unfold the faces
-                # across the opposite edge until a vertex lands in the acute section
-                # {x : <x, a> > 0, <x, b> > 0}
-                p, Px, Py = a, la, 0.0  # window edge (p, r) crossed by the section
-                r, Rx, Ry = b, bx, by
-                Qx, Qy = 0.0, 0.0  # third vertex of the face before the window
-                Lx, Ly, Hx, Hy = la, 0.0, bx, by  # visible angular interval [L, H]
-                g = f
-                for _ in range(max_unfold):
-                    k = 0
-                    while F[g, k] == p or F[g, k] == r:
-                        k += 1
-                    h = opp[g, k]
-                    if h < 0:
-                        break  # boundary or non-manifold edge
-                    k = 0
-                    while F[h, k] == p or F[h, k] == r:
-                        k += 1
-                    e = F[h, k]
-                    if e == c:
-                        break
-                    # unfold e across the window, on the side away from Q
-                    Ex, Ey, eal = _unfold(F, FL, Apol, ang, h, k, p, Px, Py, r, Rx, Ry,
-                                          Qx, Qy)
-                    dA = Ex * la
-                    dB = Ex * bx + Ey * by
-                    if dA > 0.0 and dB > 0.0:
-                        mid = e  # in the acute section: split the angle by (c, e)
-                        Mx = Ex
-                        My = Ey
-                        Mal = eal
-                        break
-                    # strictly inside the visible interval (sine of either angle > _EPS)
-                    nE = np.sqrt(Ex * Ex + Ey * Ey)
-                    visible = ((Lx * Ey - Ly * Ex > _EPS * nE * np.sqrt(Lx * Lx + Ly * Ly))
-                               and (Ex * Hy - Ey * Hx > _EPS * nE * np.sqrt(Hx * Hx + Hy * Hy)))
-                    if dA <= 0.0 and dB > 0.0:
-                        # e beyond the section on b's side: the section crosses (p, e)
-                        Qx, Qy = Rx, Ry
-                        r, Rx, Ry = e, Ex, Ey
-                        if visible:
-                            hi_id[nhi] = e
-                            hi_xy[nhi, 0] = Ex
-                            hi_xy[nhi, 1] = Ey
-                            hi_al[nhi] = eal
-                            nhi += 1
-                            Hx, Hy = Ex, Ey
-                    elif dB <= 0.0 and dA > 0.0:
-                        # on a's side: the section crosses (e, r)
-                        Qx, Qy = Px, Py
-                        p, Px, Py = e, Ex, Ey
-                        if visible:
-                            lo_id[nlo] = e
-                            lo_xy[nlo, 0] = Ex
-                            lo_xy[nlo, 1] = Ey
-                            lo_al[nlo] = eal
-                            nlo += 1
-                            Lx, Ly = Ex, Ey
-                    else:
-                        break  # e behind c: a folded neighbourhood
-                    g = h
+                mid, Mx, My, Mal, nlo, nhi = _split_obtuse(F, FL, opp, Apol, ang, f, c, a, b, la, bx, by,
+                                                           max_unfold, lo_id, lo_xy, lo_al, hi_id, hi_xy, hi_al)
                 if mid >= 0:
                     n_split += 1
                 else:
                     n_unsplit += 1
-            # fan around c by increasing angle from a to b: a, visible vertices on a's
-            # side, [the splitting vertex], visible vertices on b's side, b; with the
-            # polar angle at each of its direction to c
-            nch = 0
-            nch = _fan_point(ch_id, ch_xy, nch, a, la, 0.0, alA)
-            if fan:
-                for t in range(nlo):
-                    nch = _fan_point(ch_id, ch_xy, nch, lo_id[t], lo_xy[t, 0], lo_xy[t, 1], lo_al[t])
-            if mid >= 0:
-                nch = _fan_point(ch_id, ch_xy, nch, mid, Mx, My, Mal)
-            if fan:
-                for t in range(nhi - 1, -1, -1):
-                    nch = _fan_point(ch_id, ch_xy, nch, hi_id[t], hi_xy[t, 0], hi_xy[t, 1], hi_al[t])
-            nch = _fan_point(ch_id, ch_xy, nch, b, bx, by, alB)
-            for t in range(nch - 1):
-                ns = _put_stencil(S, G, ns, c, ch_id[t], ch_id[t + 1], ch_xy[t, 0],
-                                  ch_xy[t, 1], ch_xy[t + 1, 0], ch_xy[t + 1, 1], A0,
-                                  ch_xy[t, 2], ch_xy[t + 1, 2])
-            if mid >= 0 and nch > 3:
-                # Kimmel & Sethian's two virtual triangles as well
-                ns = _put_stencil(S, G, ns, c, a, mid, la, 0.0, Mx, My, A0, alA, Mal)
-                ns = _put_stencil(S, G, ns, c, mid, b, Mx, My, bx, by, A0, Mal, alB)
-            elif mid < 0 and nch > 2:
-                # and the plain (obtuse) triangle
-                ns = _put_stencil(S, G, ns, c, a, b, la, 0.0, bx, by, A0, alA, alB)
+            nch = _fan(ch_id, ch_xy, a, b, la, bx, by, alA, alB, fan, mid, Mx, My, Mal, nlo, nhi, lo_id, lo_xy,
+                       lo_al, hi_id, hi_xy, hi_al)
+            ns = _fan_stencils(S, G, ns, c, a, b, la, bx, by, A0, alA, alB, mid, Mx, My, Mal, ch_id, ch_xy, nch)
             if (not obtuse) and unfold and bx < wide_cos * lb:
-                # a wide acute angle: the vertex e beyond the opposite edge, if visible
-                # from c through it, adds the stencils (c, a, e) and (c, e, b)
-                h = opp[f, j]
-                if h >= 0:
-                    k = 0
-                    while F[h, k] == a or F[h, k] == b:
-                        k += 1
-                    e = F[h, k]
-                    if e != c:
-                        Ex, Ey, eal = _unfold(F, FL, Apol, ang, h, k, a, la, 0.0, b, bx, by,
-                                              0.0, 0.0)
-                        nE = np.sqrt(Ex * Ex + Ey * Ey)
-                        if (Ey > _EPS * nE) and (Ex * by - Ey * bx > _EPS * nE * lb):
-                            ns = _put_stencil(S, G, ns, c, a, e, la, 0.0, Ex, Ey, A0, alA,
-                                              eal)
-                            ns = _put_stencil(S, G, ns, c, e, b, Ex, Ey, bx, by, A0, eal,
-                                              alB)
-                            if nre >= RE.shape[0]:
-                                return ns, -1, n_split, n_unsplit
-                            RE[nre, 0] = e
-                            RE[nre, 1] = c
-                            RL[nre] = nE
-                            nre += 1
+                ns, nre = _wide_stencils(F, FL, opp, Apol, ang, f, j, c, a, b, la, lb, bx, by, A0, alA, alB,
+                                         S, G, ns, RE, RL, nre)
+                if nre < 0:
+                    return ns, -1, n_split, n_unsplit
             if ns >= S.shape[0]:
                 return -1, nre, n_split, n_unsplit
-            # the virtual edges (c, x) also update x from c: the segment lies on the
-            # surface both ways
-            for t in range(1, nch - 1):
-                if nre >= RE.shape[0]:
-                    return ns, -1, n_split, n_unsplit
-                RE[nre, 0] = ch_id[t]
-                RE[nre, 1] = c
-                RL[nre] = np.sqrt(ch_xy[t, 0] ** 2 + ch_xy[t, 1] ** 2)
-                nre += 1
+            nre = _reversed_edges(RE, RL, nre, c, ch_id, ch_xy, nch)
+            if nre < 0:
+                return ns, -1, n_split, n_unsplit
     return ns, nre, n_split, n_unsplit
 
 
