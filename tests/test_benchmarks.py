@@ -1,5 +1,6 @@
-"""The diagnostic scripts under benchmarks/ compute what they say (no timings here), and the
-result tables of the README and of docs/benchmarks.md are the committed results files'."""
+"""The scripts under benchmarks/ (the comparisons) and benchmarks/studies/ (the studies behind
+the design notes) compute what they say (no timings here), and the result tables of the README
+and of docs/benchmarks.md are the committed results files'."""
 
 import importlib.util
 import sys
@@ -11,14 +12,17 @@ import pytest
 from gromov.experiments.recognition import equal_error_rate
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+STUDIES = BENCH / "studies"
 
 
 def _module(name):
-    """A benchmark script as a module, with benchmarks/ on the path as when it is run
-    (``python benchmarks/NAME.py`` finds ``_common`` beside it)."""
+    """A benchmark script (a comparison under benchmarks/ or a study under benchmarks/studies/)
+    as a module, with benchmarks/ on the path as when it is run (``python benchmarks/NAME.py``
+    finds ``_common`` beside it; a study puts benchmarks/ on the path itself)."""
     if str(BENCH) not in sys.path:
         sys.path.insert(0, str(BENCH))
-    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
+    path = BENCH / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path if path.is_file() else STUDIES / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -339,3 +343,45 @@ def test_dense_tables_are_the_results_files():
     assert f"it adds {cost['added_s']:.2f} s to a {cost['seconds']['sparse']:.2f} s match" in flat
     placed_s = cost["seconds"]["placed"] - cost["seconds"]["sparse"]
     assert f"({placed_s:.2f} s without ZoomOut)" in flat
+
+
+
+def _alternatives(path: str) -> list[str]:
+    """A path as the docs write it, spelled out: ``a/{b,c}.json`` -> ``a/b.json``, ``a/c.json``;
+    ``a[-x].json`` -> ``a.json``, ``a-x.json``."""
+    import re
+
+    m = re.search(r"\{([^{}]*)\}|\[([^\[\]]*)\]", path)
+    if m is None:
+        return [path]
+    alts = m.group(1).split(",") if m.group(1) is not None else ["", m.group(2)]
+    return [x for alt in alts for x in _alternatives(path[:m.start()] + alt + path[m.end():])]
+
+
+def test_the_paths_the_docs_name_under_benchmarks_exist():
+    """Every ``benchmarks/...`` path that the README, the docs (design notes, guides) and
+    benchmarks/README.md name is there -- a study moved to benchmarks/studies/ with its results
+    keeps its notes' commands working -- every script benchmarks/README.md lists is there, and
+    every study it lists is cited by a design note with its path."""
+    import re
+
+    root = BENCH.parent
+    listing = (BENCH / "README.md").read_text()
+    pages = [README, BENCH / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    named = set()
+    for page in pages:
+        for m in re.finditer(r"benchmarks/[\w./{},\[\]-]*[\w/}\]]", page.read_text()):
+            named.update(_alternatives(m.group(0)))
+    named = {p for p in named if not re.search(r"[A-Z]", p.removeprefix("benchmarks/"))}   # SET, OUT: placeholders
+    assert len(named) > 50
+    missing = sorted(p for p in named if not (root / p).exists())
+    assert not missing, missing
+    comparisons, studies = listing.split("## Studies")
+    for name in re.findall(r"^\| `(\w+\.py)` \|", comparisons, flags=re.M):
+        assert (BENCH / name).is_file(), name
+    listed = re.findall(r"^\| `(\w+\.py)` \|", studies, flags=re.M)
+    assert len(listed) >= 16
+    notes = " ".join(p.read_text() for p in (root / "docs" / "design").glob("*.md"))
+    for name in listed:
+        assert (STUDIES / name).is_file(), name
+        assert f"benchmarks/studies/{name}" in notes, f"no design note gives the path of {name}"

@@ -68,7 +68,7 @@ FLIP_TOL = 0.25
 #: <gromov.metrics.diffusion.HeatDiffusionSolver.at_tau>`); see
 #: :func:`gromov.experiments.gh_matrix`'s ``rank_tau_scale``. Chosen on the validation sets: the margin of the diffusion ranking rises
 #: in six readings of seven, e.g. synthetic welds 0.988 -> 1.427 (``.venv/bin/python
-#: benchmarks/bench_rank_residual.py``, "difference @1" against "@0.5"; see
+#: benchmarks/studies/bench_rank_residual.py``, "difference @1" against "@0.5"; see
 #: docs/design/recognition.md).
 from ._defaults import RANK_TAU_SCALE  # noqa: E402
 #: How recognition summarises the residuals of a correspondence (see
@@ -76,7 +76,7 @@ from ._defaults import RANK_TAU_SCALE  # noqa: E402
 #: (:func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), or
 #: ``"difference"``, that of their differences over the larger diameter (the additive form).
 #: Chosen on the validation sets: the diffusion margin is larger in seven readings of eight and
-#: equal in the eighth (``.venv/bin/python benchmarks/bench_rank_residual.py``; see
+#: equal in the eighth (``.venv/bin/python benchmarks/studies/bench_rank_residual.py``; see
 #: docs/design/recognition.md).
 from ._defaults import RANK_RESIDUAL  # noqa: E402
 from ._defaults import RANK_RESIDUALS  # noqa: E402

@@ -82,7 +82,7 @@ TRIM_KEEP = 0.8
 Chosen on the synthetic set and TOSCA classes the paper's experiments do not use (horse,
 centaur, wolf, michael): the best diffusion ranking of those tried on both sets, EER with welds
 0.0% (synthetic) and 0.6% (held-out) against 4.7% and 1.1% for the RMS
-(``.venv/bin/python benchmarks/recognition_statistics.py --set synthetic|heldout``; see
+(``.venv/bin/python benchmarks/studies/recognition_statistics.py --set synthetic|heldout``; see
 docs/design/recognition.md)."""
 
 
@@ -99,7 +99,7 @@ def trimmed_rms(r: np.ndarray, keep: float = TRIM_KEEP) -> float:
     most pairs -- in the spirit of partial similarity (Bronstein, Bronstein, Bruckstein &
     Kimmel, IJCV 84, 2009), at a fixed fraction of the pairs. (With the heat-kernel diffusion
     distance a weld moves whole rows -- every pair of a sample near it -- and all distances a
-    little: :func:`sample_trimmed_rms` and ``benchmarks/weld_rows.py``.) ``keep = 1`` is the
+    little: :func:`sample_trimmed_rms` and ``benchmarks/studies/weld_rows.py``.) ``keep = 1`` is the
     RMS (:func:`norm_value` with p = 2).
     """
     if not 0.0 < keep <= 1.0:

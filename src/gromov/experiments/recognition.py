@@ -38,7 +38,7 @@ logger = logging.getLogger(__name__)
 #: The neighbour whose distance is a shape's local scale in :func:`local_scaling`. Chosen on the
 #: validation sets -- synthetic, stretched synthetic, close people, held-out TOSCA classes -- by
 #: the geometric mean of the diffusion rankings' margins: 2.095 at k = 4, against 1.608 as ranked
-#: and 1.979 / 2.018 / 1.753 at k = 2 / 3 / 5 (``.venv/bin/python benchmarks/probe_local_scaling.py``;
+#: and 1.979 / 2.018 / 1.753 at k = 2 / 3 / 5 (``.venv/bin/python benchmarks/studies/probe_local_scaling.py``;
 #: docs/design/recognition.md).
 #: In those sets the smallest class of Experiment 1 has 5 shapes: k = 4 is that less one, and
 #: k >= 5 (scales from other classes) was worse. Keep k below your smallest class.

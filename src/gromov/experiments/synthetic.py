@@ -717,7 +717,7 @@ def _stretched(V: np.ndarray, strain: float, rng: np.random.Generator) -> np.nda
     of the displacement gradient's entries is ``strain``: lengths on the surface change by a few
     times ``strain`` here and there (measured in the ``pose_stretch`` note), the way an
     artist's or a scanner's poses stretch a body (TOSCA's poses change geodesic distances by
-    2.5-9 %, ``benchmarks/tosca_isometry.py``) while an articulated pose keeps them.
+    2.5-9 %, ``benchmarks/studies/tosca_isometry.py``) while an articulated pose keeps them.
     """
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
     k = 2.0 * np.pi / (_STRETCH_WAVELENGTH * diag)
@@ -1049,7 +1049,7 @@ class Synthetic:
         random stream, so the joint angles are those of the unstretched poses), so that poses
         are no longer nearly isometric. TOSCA's are not: between two poses its geodesic
         distances change by a median 2.5 % (victoria), 4.5 % (david), 8-9 % (cat, dog)
-        (``benchmarks/tosca_isometry.py``); at 0.1 those of the synthetic people change by
+        (``benchmarks/studies/tosca_isometry.py``); at 0.1 those of the synthetic people change by
         2.4-6.5 % and the cat's by 4-5 % (rest vs poses 1-4, measured with the same benchmark's
         statistic), against 0-1 % at 0. A more faithful validation set for recognition, where
         the variation within a class competes with the difference between classes. The rest

@@ -1,6 +1,6 @@
 """Where the equal error rate of a `gromov reproduce` run comes from.
 
-Run:  .venv/bin/python benchmarks/eer_breakdown.py [RESULTS.json ...]
+Run:  .venv/bin/python benchmarks/studies/eer_breakdown.py [RESULTS.json ...]
       (default: benchmarks/results/reproduce-tosca*/results.json)
 
 For each experiment, metric and ranking (the GH estimate; the trimmed distortion where the
@@ -67,7 +67,7 @@ def breakdown(results: dict) -> dict:
 
 def main(argv=None):
     paths = [Path(p) for p in (argv if argv is not None else sys.argv[1:])] or sorted(
-        HERE.glob("results/reproduce-tosca*/results.json"))
+        HERE.parent.glob("results/reproduce-tosca*/results.json"))
     for path in paths:
         r = json.loads(path.read_text())
         opts = r["params"]["metric_options"]["diffusion"]

@@ -1,6 +1,6 @@
 """Is it the search or the selection? GMDS from every extended start, scored several ways.
 
-Run:  .venv/bin/python benchmarks/bench_selection.py [--data DIR] [--metric diffusion|geodesic]
+Run:  .venv/bin/python benchmarks/studies/bench_selection.py [--data DIR] [--metric diffusion|geodesic]
                                                      [--classes horse,centaur,wolf,michael]
                                                      [--no-topkids] [--json OUT]
 
@@ -129,7 +129,7 @@ def _pick(cands: list[dict], criterion: str) -> float:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[2] / "shared" / "data")))
     ap.add_argument("--metric", choices=tuple(OPTIONS), default="diffusion")
     ap.add_argument("--classes", default="horse,centaur,wolf,michael")
     ap.add_argument("--no-topkids", action="store_true")

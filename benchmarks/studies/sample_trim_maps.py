@@ -1,6 +1,6 @@
 """Do the wrong GMDS maps still beat the ground truth when whole samples are set aside?
 
-Run:  .venv/bin/python benchmarks/sample_trim_maps.py [--data DIR] [--classes horse,centaur,wolf,michael]
+Run:  .venv/bin/python benchmarks/studies/sample_trim_maps.py [--data DIR] [--classes horse,centaur,wolf,michael]
                                                       [--json OUT]
 
 Held-out TOSCA classes, reference pose 0 against deformations 1 and 2, clean and with 3
@@ -18,6 +18,7 @@ the summary that matches the mechanism.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -27,7 +28,8 @@ from gromov.experiments.datasets import TOSCA, experiment1
 from gromov.experiments.reproduce import _pair_quality, _Shapes
 from gromov.gh import ShapeMetric, match
 
-from _common import HEAT as OPTIONS, add_data_argument, residual_summaries, write_results
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import HEAT as OPTIONS, add_data_argument, residual_summaries, write_results  # noqa: E402
 
 WRONG = 0.05
 

@@ -1,6 +1,6 @@
 """What a welded vertex does to the heat-kernel diffusion distance: a few pairs, or whole rows?
 
-Run:  .venv/bin/python benchmarks/weld_rows.py [--data DIR] [--classes wolf,horse,centaur,michael]
+Run:  .venv/bin/python benchmarks/studies/weld_rows.py [--data DIR] [--classes wolf,horse,centaur,michael]
                                                [--json OUT]
 
 Held-out TOSCA classes (not the paper's), built exactly as ``gromov reproduce`` builds them:
@@ -27,6 +27,7 @@ run through the weld.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -37,7 +38,8 @@ from gromov.experiments.datasets import TOSCA, experiment1
 from gromov.experiments.reproduce import _Shapes, _weld
 from gromov.metrics import metric_solver
 
-from _common import HEAT as OPTIONS, add_data_argument, residual_summaries, write_results
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import HEAT as OPTIONS, add_data_argument, residual_summaries, write_results  # noqa: E402
 
 BANDS = ((0.0, 0.05), (0.05, 0.1), (0.1, 0.2), (0.2, 1.01))
 

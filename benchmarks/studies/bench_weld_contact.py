@@ -1,6 +1,6 @@
 """How much does a welded vertex move each metric? Held-out TOSCA classes, no optimiser involved.
 
-Run:  .venv/bin/python benchmarks/bench_weld_contact.py [--data DIR] [--classes horse,centaur,wolf,michael]
+Run:  .venv/bin/python benchmarks/studies/bench_weld_contact.py [--data DIR] [--classes horse,centaur,wolf,michael]
                                                        [--json OUT]
 
 The paper (Bronstein et al. 2010, §5) expects diffusion distances to barely move when two
@@ -44,8 +44,7 @@ from gromov.experiments.datasets import TOSCA
 from gromov.experiments.reproduce import _Shapes
 from gromov.gh import ShapeMetric
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))  # the sibling benchmark's helpers
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
 from _common import add_data_argument, write_results  # noqa: E402
 from bench_heldout import _rows_of  # noqa: E402
 

@@ -1,6 +1,6 @@
 """What should recognition rank pairs of shapes by? The GH estimate or a robust distortion.
 
-Run:  .venv/bin/python benchmarks/recognition_statistics.py [--set synthetic|heldout|paper]
+Run:  .venv/bin/python benchmarks/studies/recognition_statistics.py [--set synthetic|heldout|paper]
                                                             [--metrics geodesic,diffusion] [--json OUT]
 
 The shapes are those of `gromov reproduce` (Experiment 1: clean and welded deformations;
@@ -40,12 +40,12 @@ import argparse
 import json
 import multiprocessing as mp
 import os
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from _common import margin
 
 from gromov.experiments import datasets
 from gromov.experiments.pairwise import _one_thread_per_worker, prepare
@@ -53,6 +53,9 @@ from gromov.experiments.recognition import equal_error_rate
 from gromov.experiments.reproduce import DIFFUSION_FILL_HOLES, _collection, _Shapes, settings_for
 from gromov.gh import match
 from gromov.gmds import norm_value, sample_trimmed_rms, trimmed_rms
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import margin  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 HELDOUT = {"wolf": 2, "horse": 4, "centaur": 5, "michael": 6}
@@ -84,7 +87,7 @@ def _pair(ij):
 def main(argv=None):
     global _N
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[2] / "shared" / "data")))
     ap.add_argument("--set", choices=("synthetic", "heldout", "paper"), default="synthetic")
     ap.add_argument("--metrics", default="geodesic,diffusion")
     ap.add_argument("--jobs", type=int, default=2)

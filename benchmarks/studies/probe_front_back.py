@@ -1,6 +1,6 @@
 """Why some TOPKIDS maps score better against the mirrored ground truth: front/back turns.
 
-Run:  .venv/bin/python benchmarks/probe_front_back.py [--data DIR] [--kids kid10,kid15] [--turn-margin F]
+Run:  .venv/bin/python benchmarks/studies/probe_front_back.py [--data DIR] [--kids kid10,kid15] [--turn-margin F]
                                                       [--basins] [--json OUT]
 
 kidXX -> kid00, matched as ``gromov match`` does (diffusion, 3,000 working vertices, 100
@@ -44,8 +44,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import HERE, add_data_argument, write_results
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import add_data_argument, write_results
 
 from gromov.evaluate import image_errors
 from gromov.experiments import datasets
@@ -54,6 +54,8 @@ from gromov.gmds import trimmed_rms
 from gromov.metrics.diffusion import correspondence_options
 from gromov.orientation import orientation_agreement
 from gromov.search import _at_vertices
+
+HERE = Path(__file__).resolve().parent
 
 
 def _working(s: ShapeMetric, ids) -> np.ndarray:
@@ -163,7 +165,7 @@ def main(argv=None) -> int:
     ap.add_argument("--turn-margin", type=float, default=None, metavar="F",
                     help="gromov.gh.TURN_MARGIN for this run (1: no choice by curvature)")
     ap.add_argument("--basins", action="store_true", help="GMDS from every start, by basin (see above)")
-    ap.add_argument("--json", default=str(HERE / "results" / "front_back.json"))
+    ap.add_argument("--json", default=str(HERE / "front_back.json"))
     args = ap.parse_args(argv)
     import gromov.gh
 
@@ -178,8 +180,8 @@ def main(argv=None) -> int:
     sym = kids.symmetry(kids.reference)
     if args.basins:
         rows = [basins(kids, k, sy, gy, sym) for k in names]
-        write_results(args.json, {"command": "python benchmarks/probe_front_back.py --basins --kids "
-                                  + ",".join(names) + f" --json benchmarks/results/{Path(args.json).name}",
+        write_results(args.json, {"command": "python benchmarks/studies/probe_front_back.py --basins --kids "
+                                  + ",".join(names) + f" --json benchmarks/studies/{Path(args.json).name}",
                                   "pairs": rows})
         return 0
     rows = [probe(kids, k, sy, gy, sym) for k in names]
@@ -196,10 +198,10 @@ def main(argv=None) -> int:
     summary["mean_error_direct"] = float(np.mean([r["prefer"]["error_direct"] for r in rows]))
     print(f"samples' mean error / diameter: {summary['mean_error']:.4f} (the better reading), "
           f"{summary['mean_error_direct']:.4f} (direct)")
-    command = "python benchmarks/probe_front_back.py" + (f" --turn-margin {args.turn_margin:g}" if args.turn_margin
+    command = "python benchmarks/studies/probe_front_back.py" + (f" --turn-margin {args.turn_margin:g}" if args.turn_margin
                                                          is not None else "")
-    if args.json != str(HERE / "results" / "front_back.json"):
-        command += f" --json benchmarks/results/{Path(args.json).name}"
+    if args.json != str(HERE / "front_back.json"):
+        command += f" --json benchmarks/studies/{Path(args.json).name}"
     write_results(args.json, {"command": command, "turn_margin": gromov.gh.TURN_MARGIN, "summary": summary,
                               "pairs": rows})
     return 0

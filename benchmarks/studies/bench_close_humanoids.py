@@ -1,6 +1,6 @@
 """A harder recognition pair for choosing on validation data: two synthetic people made closer.
 
-Run:  .venv/bin/python benchmarks/bench_close_humanoids.py [--blends 1,0.5,0.25] [--json OUT]
+Run:  .venv/bin/python benchmarks/studies/bench_close_humanoids.py [--blends 1,0.5,0.25] [--json OUT]
 
 On the paper's TOSCA classes every false acceptance at the equal error rate is a david /
 victoria pair, and neither validation set has a pair of classes that close (the held-out
@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
-from _common import margin
 
 from gromov.experiments import datasets
 from gromov.experiments.pairwise import gh_matrix
@@ -38,6 +38,9 @@ from gromov.experiments.recognition import equal_error_rate
 from gromov.experiments.reproduce import _Shapes
 from gromov.experiments.synthetic import Synthetic
 from gromov.gh import RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import margin  # noqa: E402
 
 OPTIONS = {"raw": {"units": "raw"}, "normalized": {"units": "normalized"}}
 

@@ -1,11 +1,11 @@
 """Sample-level least trimmed squares in the extension of GMDS's coarse starts: on or off.
 
-Run:  .venv/bin/python benchmarks/bench_extend_keep.py [--keep 0.7] [--metric diffusion|geodesic]
+Run:  .venv/bin/python benchmarks/studies/bench_extend_keep.py [--keep 0.7] [--metric diffusion|geodesic]
                                                       [--shapes horse6,centaur1+weld3,...] [--data DIR]
 
 A welded vertex moves whole rows of the heat-kernel diffusion distances
-(``benchmarks/weld_rows.py``), and the RMS over the best-fitting 70% of *samples* prefers the
-true map over every wrong held-out map (``benchmarks/sample_trim_maps.py``).
+(``benchmarks/studies/weld_rows.py``), and the RMS over the best-fitting 70% of *samples* prefers the
+true map over every wrong held-out map (``benchmarks/studies/sample_trim_maps.py``).
 ``gromov.match(..., search=gromov.SearchOptions(extend_keep=K))`` with ``K < 1`` (opt-in) follows each extended
 start's discrete descent by ``gromov.gh.EXTEND_ROUNDS`` rounds that descend on the
 best-fitting fraction ``K`` of the samples and place the others given them. This compares it
@@ -17,6 +17,7 @@ them): d(C, C0) (best of direct and mirrored) per pair and per condition.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -26,7 +27,8 @@ import gromov.gh as gh
 from gromov.experiments.datasets import TOSCA, experiment1, experiment2
 from gromov.experiments.reproduce import _pair_quality, _Shapes
 
-from _common import HEAT as OPTIONS, add_data_argument
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import HEAT as OPTIONS, add_data_argument  # noqa: E402
 
 
 def main(argv=None):

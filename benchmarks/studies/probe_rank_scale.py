@@ -1,6 +1,6 @@
 """Does recognition's ranking gain from how it treats the two shapes' scales? (Variants not taken.)
 
-Run:  .venv/bin/python benchmarks/probe_rank_scale.py [--sets close0.5,close1,stretched,synthetic,heldout]
+Run:  .venv/bin/python benchmarks/studies/probe_rank_scale.py [--sets close0.5,close1,stretched,synthetic,heldout]
                                                       [--metrics diffusion] [--json OUT]
 
 The same correspondences as :mod:`bench_rank_residual` (each pair matched once as

@@ -1,7 +1,7 @@
 """Which neighbour should local scaling use? EER and margin of the locally scaled rankings.
 
-Run:  .venv/bin/python benchmarks/probe_local_scaling.py [--ks 2,3,4] [--no-close] [--paper]
-                                                          [--json benchmarks/results/local_scaling.json]
+Run:  .venv/bin/python benchmarks/studies/probe_local_scaling.py [--ks 2,3,4] [--no-close] [--paper]
+                                                          [--json benchmarks/studies/local_scaling.json]
 
 :func:`gromov.experiments.recognition.local_scaling` divides each pair's distance by the
 geometric mean of the two shapes' distances to their k-th nearest shape (Zelnik-Manor &
@@ -32,12 +32,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
-from _common import HERE, margin, write_results
 
 from gromov.experiments.recognition import equal_error_rate, local_roc, smallest_class
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import HERE, margin, write_results  # noqa: E402
 
 SETS = {"synthetic": "synthetic", "stretched": "synthetic-stretch", "heldout": "reproduce-heldout"}
 PAPER = "reproduce-tosca"

@@ -1,6 +1,6 @@
 """The dense placement's settings: heat scale and landmark trimming, on TOPKIDS.
 
-Run:  .venv/bin/python benchmarks/probe_dense.py [--data DIR] [--kids 8] [--json OUT]
+Run:  .venv/bin/python benchmarks/studies/probe_dense.py [--data DIR] [--kids 8] [--json OUT]
 
 kidXX -> kid00 for the first ``--kids`` kids, matched as ``gromov match`` does (diffusion,
 3,000 working vertices, 100 samples). The working vertices of each kid are placed on kid00 by
@@ -36,9 +36,9 @@ KEEPS = (1.0, 0.7)
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[1] / "shared" / "data")))
+    ap.add_argument("--data", default=os.environ.get("GROMOV_DATA", str(HERE.parents[2] / "shared" / "data")))
     ap.add_argument("--kids", type=int, default=8)
-    ap.add_argument("--json", default=str(HERE / "results" / "probe_dense.json"))
+    ap.add_argument("--json", default=str(HERE / "probe_dense.json"))
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     kids = datasets.TopKids(Path(args.data) / "topkids")

@@ -1,6 +1,6 @@
 """How should recognition summarise a correspondence's residuals? Differences or log ratios.
 
-Run:  .venv/bin/python benchmarks/bench_rank_residual.py [--sets synthetic,stretched,close1,close0.5,heldout]
+Run:  .venv/bin/python benchmarks/studies/bench_rank_residual.py [--sets synthetic,stretched,close1,close0.5,heldout]
                                                          [--metrics diffusion,geodesic] [--json OUT]
 
 Recognition (:func:`gromov.experiments.gh_matrix`, ``gromov reproduce``) ranks a pair of shapes
@@ -21,7 +21,7 @@ The validation sets, never the paper's classes (cat, dog, david, victoria):
 - ``stretched``: the same with non-isometric poses, ``Synthetic(pose_stretch=0.1)``
   (``gromov reproduce --pose-stretch 0.1``);
 - ``close1``, ``close0.5``: the stretched synthetic people only, victoria's body the fraction
-  1 or 0.5 of the way from david's (``benchmarks/bench_close_humanoids.py``: 50 samples,
+  1 or 0.5 of the way from david's (``benchmarks/studies/bench_close_humanoids.py``: 50 samples,
   reference + 4 poses, clean and welded);
 - ``heldout``: TOSCA classes the paper did not use (wolf:2, horse:4, centaur:5, michael:6;
   ``gromov reproduce --classes ...``; needs the data).
@@ -32,12 +32,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import multiprocessing as mp
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from _common import add_data_argument, margin, write_results
 
 from gromov.experiments import datasets
 from gromov.experiments.pairwise import _one_thread_per_worker, prepare
@@ -46,6 +46,9 @@ from gromov.experiments.reproduce import DIFFUSION_FILL_HOLES, _collection, _Sha
 from gromov.experiments.synthetic import Synthetic
 from gromov.gh import RANK_TAU_SCALE, _match, ranking_value
 from gromov.gmds import SurfacePoints, SymmetricGMDS
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import add_data_argument, margin, write_results  # noqa: E402
 
 HELDOUT = {"wolf": 2, "horse": 4, "centaur": 5, "michael": 6}
 RESIDUALS = ("difference", "log")

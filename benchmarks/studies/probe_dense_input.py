@@ -1,6 +1,6 @@
 """ZoomOut at the input resolution, started from gromov's dense map: what it gains and costs.
 
-Run:  .venv/bin/python benchmarks/probe_dense_input.py [--data DIR] [--classes wolf,centaur,horse]
+Run:  .venv/bin/python benchmarks/studies/probe_dense_input.py [--data DIR] [--classes wolf,centaur,horse]
       [--json OUT]
 
 For pose 0 -> the next pose of each TOSCA class: ``gromov.match(x, y, dense=True)``, then
@@ -31,8 +31,10 @@ from gromov.experiments import datasets
 from gromov.experiments.reproduce import reflection_map
 from gromov.metrics.diffusion import cotan_laplacian
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import HERE, add_data_argument  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import add_data_argument  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 
 POSES = {"wolf": 1, "centaur": 1, "horse": 5, "cat": 1, "dog": 1, "david": 1, "michael": 1, "victoria": 1}
 RUNS = ((20, 60), (40, 60), (20, 100), (40, 100))
@@ -61,7 +63,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
     ap.add_argument("--classes", default="wolf,centaur,horse")
-    ap.add_argument("--json", default=str(HERE / "results" / "probe_dense_input.json"))
+    ap.add_argument("--json", default=str(HERE / "probe_dense_input.json"))
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     tosca = datasets.TOSCA(Path(args.data) / "tosca")
@@ -87,7 +89,7 @@ def main(argv=None) -> int:
                                                "seconds": time.perf_counter() - t}
         rows[f"{cls}0-{POSES[cls]}"] = row
         print(f"{cls}: {json.dumps(row)}", flush=True)
-    Path(args.json).write_text(json.dumps({"command": "python benchmarks/probe_dense_input.py --classes "
+    Path(args.json).write_text(json.dumps({"command": "python benchmarks/studies/probe_dense_input.py --classes "
                                            + args.classes, "pairs": rows}, indent=1))
     print("wrote", args.json)
     return 0

@@ -1,7 +1,7 @@
 """Refining the dense map: on the working meshes, on the input meshes, with and without an
 orthogonal functional map, and from the true map.
 
-Run:  .venv/bin/python benchmarks/probe_dense_refine.py [--data DIR] [--points 1500] [--json OUT]
+Run:  .venv/bin/python benchmarks/studies/probe_dense_refine.py [--data DIR] [--points 1500] [--json OUT]
 
 Pairs: TOSCA cat1 -> cat0, centaur1 -> centaur0, dog0 -> dog1 (shared triangulation), TOPKIDS
 kid01, kid03, kid05, kid12 -> kid00. For each, ``gromov.match(x, y, dense=...)`` with
@@ -32,9 +32,11 @@ from gromov.experiments.reproduce import reflection_map
 from gromov.gh import ShapeMetric
 from gromov.metrics.diffusion import correspondence_options
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import HERE, add_data_argument  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import add_data_argument  # noqa: E402
 from bench_dense import at_vertices  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 
 TOSCA_PAIRS = (("cat", 1, 0), ("centaur", 1, 0), ("dog", 0, 1))
 KIDS = ("kid01", "kid03", "kid05", "kid12")
@@ -44,7 +46,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
     ap.add_argument("--points", type=int, default=1500)
-    ap.add_argument("--json", default=str(HERE / "results" / "probe_dense_refine.json"))
+    ap.add_argument("--json", default=str(HERE / "probe_dense_refine.json"))
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     root = Path(args.data)
@@ -81,7 +83,7 @@ def main(argv=None) -> int:
                 row[label] = score_vertices(input_zoomout(sx, sy, T, orthogonal=ortho))
         rows[name] = row
         print(name, {k: f"{v['mean']:.2f} / {v['median']:.2f}" for k, v in row.items()}, flush=True)
-    Path(args.json).write_text(json.dumps({"command": "python benchmarks/probe_dense_refine.py", "points": args.points,
+    Path(args.json).write_text(json.dumps({"command": "python benchmarks/studies/probe_dense_refine.py", "points": args.points,
                                            "pairs": rows}, indent=1))
     print("wrote", args.json)
     return 0

@@ -1,6 +1,6 @@
 """How isometric are TOSCA's poses? Geodesic distances of two poses at full resolution.
 
-Run:  .venv/bin/python benchmarks/tosca_isometry.py [--data DIR] [--classes cat,dog,...] [--json OUT]
+Run:  .venv/bin/python benchmarks/studies/tosca_isometry.py [--data DIR] [--classes cat,dog,...] [--json OUT]
 
 GMDS with the geodesic metric can only find the ground-truth map if the two poses are nearly
 isometric. For each class this takes its first two poses (same triangulation, vertex i <-> i),
@@ -15,6 +15,7 @@ these are properties of the data.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -23,7 +24,8 @@ import numpy as np
 from gromov.experiments.datasets import TOSCA
 from gromov.metrics import GeodesicSolver
 
-from _common import add_data_argument, write_results
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common and the comparisons
+from _common import add_data_argument, write_results  # noqa: E402
 
 
 def pose_pair(tosca: TOSCA, cls: str, n: int = 100, seed: int = 1) -> dict:
