@@ -209,3 +209,44 @@ def test_gather_concatenates_the_lists_of_each_group():
     assert out.tolist() == [20, 21, 22, 10, 11]
     out_ptr, out = gather(ptr, ids, np.array([0, 1, 3]), np.array([0, 0, 2]))
     assert out_ptr.tolist() == [0, 2, 7] and out.tolist() == [10, 11, 10, 11, 20, 21, 22]
+
+
+def _body_and_debris(n_debris: int = 12, size: float = 0.05):
+    """An icosphere of radius 1 with ``n_debris`` tiny tetrahedra floating beside it."""
+    body = icosphere(3)
+    rng = np.random.default_rng(0)
+    tet = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    V, F, n = [np.array(body.vertices)], [np.array(body.faces)], body.n_vertices
+    for _ in range(n_debris):
+        V.append(tet * size * rng.uniform(0.8, 1.2, 3) + rng.normal(size=3) * 1.6)
+        F.append(tf + n)
+        n += 4
+    return gromov.Mesh(np.vstack(V), np.vstack(F)), body.n_vertices
+
+
+def test_small_pieces_are_left_out_of_the_working_mesh_and_move_with_the_nearest_surface():
+    mesh, n_body = _body_and_debris()
+    keep = gromov.resolution.main_pieces(mesh)
+    assert keep[:n_body].all() and not keep[n_body:].any()
+    w = gromov.working_mesh(mesh, None)
+    assert w.mesh.n_vertices == n_body and w.mesh.n_components == 1
+    np.testing.assert_array_equal(w.source_kept, keep)
+    # each debris vertex is located on the sphere, near the point of the sphere closest to it
+    located = w.interpolate(w.mesh.vertices)[~keep]
+    radial = mesh.vertices[~keep] / np.linalg.norm(mesh.vertices[~keep], axis=1, keepdims=True)
+    assert np.linalg.norm(located - radial, axis=1).max() < 2 * w.mesh.mean_edge_length
+    ptr, ids = w.owned()   # owned by no working vertex: a map never lands on them
+    assert len(ids) == n_body and not np.isin(ids, np.flatnonzero(~keep)).any()
+    # the metric is the sphere's: no sample on the debris, the diameter the sphere's own
+    s, alone = gromov.ShapeMetric(mesh, resolution=None), gromov.ShapeMetric(icosphere(3), resolution=None)
+    assert np.isclose(s.diameter, alone.diameter, rtol=1e-9)
+    assert s.samples(30).max() < n_body
+
+
+def test_a_mesh_made_of_small_pieces_is_kept_whole():
+    mesh, _ = _body_and_debris()
+    debris = mesh.submesh(np.arange(mesh.n_vertices) >= icosphere(3).n_vertices)   # 12 pieces of 1/12 each
+    assert gromov.resolution.main_pieces(debris).all()
+    # below 1% each, together less than half of the area: all of them
+    assert gromov.resolution.main_pieces(debris, min_fraction=0.2).all()

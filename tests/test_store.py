@@ -1,6 +1,7 @@
 """The shape store: stored shapes match bit for bit, entries are verified, pairwise resumes."""
 
 import dataclasses
+import hashlib
 import json
 import logging
 import os
@@ -21,7 +22,7 @@ from gromov.experiments import pairwise
 from gromov.experiments.pairwise import gh_matrix
 from gromov.metrics import GeodesicSolver
 from gromov.shapes import grid, icosphere, rolled_grid
-from gromov.store import PAIR_ARRAYS, ShapeStore, StoreError, match_options_key
+from gromov.store import PAIR_ARRAYS, ShapeStore, StoreError, _arrays_sha256, match_options_key
 
 
 def _sheets():
@@ -160,6 +161,27 @@ def test_a_prepared_shape_metric_is_keyed_by_its_arrays(tmp_path):
     again.shape(other, "geodesic")
     assert again.computed == 1 and len(again.entries()) == 2
 
+
+
+def test_shapes_that_differ_only_in_their_file_numbering_are_separate_entries(tmp_path):
+    """Two arrays-given meshes alike but for the file vertices loading dropped give their
+    per-vertex results in different file numberings: separate entries; a mesh without dropped
+    or merged vertices keeps the key it had (its file index is the identity, not hashed)."""
+    g = grid(9, 5)
+    n = g.n_vertices
+    plain = gromov.Mesh(g.vertices, g.faces)
+    last = gromov.Mesh(g.vertices, g.faces, file_index=np.r_[np.arange(n), -1])    # a dropped last vertex
+    first = gromov.Mesh(g.vertices, g.faces, file_index=np.r_[-1, np.arange(n)])   # ... or first
+    store = ShapeStore(tmp_path)
+    keys = [store.key_for(m, "geodesic") for m in (plain, last, first)]
+    assert len(set(keys)) == 3
+    h = hashlib.sha256()   # the identity file index is left out of the hash
+    for name, a in sorted({"kind": np.array("mesh"), "vertices": plain.vertices, "input_ids": plain.input_ids,
+                           "faces": plain.faces}.items()):
+        a = np.ascontiguousarray(a)
+        h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
+        h.update(a.tobytes())
+    assert _arrays_sha256(plain) == h.hexdigest()
 
 def _entry_file(store: ShapeStore):
     (e,) = store.entries()

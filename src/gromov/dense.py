@@ -101,7 +101,7 @@ def landmark_distances(s, points, tau_scale: float = DENSE_TAU_SCALE) -> np.ndar
     Between a vertex and a point inside a face the squared distances to the face's corners
     are interpolated barycentrically (as :class:`gromov.gmds.SurfaceDistance` does). With the
     heat-kernel diffusion metric the distances are those at ``tau_scale`` times its diffusion
-    time (:meth:`gromov.gh.ShapeMetric.ranking_surface`, the same eigenpairs); with any other
+    time (:meth:`gromov.shape_metric.ShapeMetric.ranking_surface`, the same eigenpairs); with any other
     metric, the metric's own.
 
     Parameters
@@ -237,10 +237,20 @@ def laplace_beltrami_basis(mesh, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _input_basis(s, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`laplace_beltrami_basis` of ``s``'s input mesh, computed once per shape."""
+    """:func:`laplace_beltrami_basis` of ``s``'s input mesh, computed once per shape: of the
+    pieces its working mesh covers (:attr:`~gromov.resolution.WorkingMesh.source_kept`), with
+    rows and masses 0 on the pieces left out."""
+    kept = s.working.source_kept
+    n = int(kept.sum())
     cached = s._input_basis
-    if cached is None or cached[0].shape[1] < min(k, s.input.n_vertices - 2):
-        s._input_basis = laplace_beltrami_basis(s.input, k)
+    if cached is None or cached[0].shape[1] < min(k, n - 2):
+        if n == len(kept):
+            s._input_basis = laplace_beltrami_basis(s.input, k)
+        else:
+            phi, mass = laplace_beltrami_basis(s.input.submesh(kept), k)
+            full, m = np.zeros((len(kept), phi.shape[1])), np.zeros(len(kept))
+            full[kept], m[kept] = phi, mass
+            s._input_basis = (full, m)
     return s._input_basis[0][:, :k], s._input_basis[1]
 
 
@@ -329,6 +339,8 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     if sy._input_rings is None or sy._input_rings[0] != rings:
         sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
     ptr, ids = sy._input_rings[1]
+    left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
+    T0 = T[left_out]
     for k in range(min(k_start, k_end), k_end + 1, step):
         C = phx[:, :k].T @ (mx[:, None] * phy[T, :k])
         if orthogonal:
@@ -336,6 +348,7 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
             C = u @ vt
         a = np.ascontiguousarray(phx[:, :k] @ C)
         T = _nearest_in_rings(*(readonly(b) for b in (a, np.ascontiguousarray(phy[:, :k]), T, ptr, ids)))
+        T[left_out] = T0
     return T
 
 

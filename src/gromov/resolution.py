@@ -14,6 +14,13 @@ a subset of the input vertices. Consequences:
   triangles, so the ground-truth vertex correspondence survives exactly;
 - every input vertex is located on the working mesh (face + barycentric coordinates,
   and the nearest working vertex), to carry functions and points back and forth.
+
+Connected pieces of less than :data:`MIN_PIECE` of the area (a gorilla's eyes and teeth,
+scanner debris) are left out of the working mesh (:func:`main_pieces`): in the diffusion metric
+a small piece lies far from everything (no heat flows to it, and its own heat stays
+concentrated), so farthest point sampling would spend samples on each piece first and the
+distances between pieces would dwarf those across the shape. Their vertices are located on the
+nearest part of the working mesh in space, and move with it.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ from __future__ import annotations
 import logging
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -28,9 +36,14 @@ from ._project import project_among
 from .errors import GromovWarning
 from .mesh import Mesh, MeshError, PointCloud
 
-__all__ = ["WorkingMesh", "WorkingCloud", "simplify", "working_mesh", "working_cloud", "working_shape"]
+__all__ = ["WorkingMesh", "WorkingCloud", "MIN_PIECE", "main_pieces", "simplify", "working_mesh", "working_cloud",
+           "working_shape"]
 
 logger = logging.getLogger(__name__)
+
+MIN_PIECE = 0.01
+"""Connected pieces of a mesh with less than this fraction of its area are left out of its
+working mesh (:func:`main_pieces`)."""
 
 
 class _WorkingMaps:
@@ -44,6 +57,19 @@ class _WorkingMaps:
     def to_input_ids(self, working_vertices) -> np.ndarray:
         """File ids (as read from the input file) of working vertices."""
         return self.mesh.input_ids[np.asarray(working_vertices, dtype=np.int64)]
+
+    @cached_property
+    def source_kept(self) -> np.ndarray:
+        """Whether each source vertex lies on a piece of the source that the working shape
+        covers (False on the small pieces :func:`main_pieces` leaves out)."""
+        src = self.source
+        if not isinstance(src, Mesh) or len(self.vertex_ids) == src.n_vertices:
+            kept = np.ones(src.n_vertices, dtype=bool)
+        else:
+            labels = src.component_labels
+            kept = np.isin(labels, labels[self.vertex_ids])
+        kept.flags.writeable = False
+        return kept
 
     def to_source(self, working_vertices) -> np.ndarray:
         """Indices in ``source`` of working vertices."""
@@ -126,9 +152,11 @@ class WorkingMesh(_WorkingMaps):
     def owned(self) -> tuple[np.ndarray, np.ndarray]:
         """CSR ``(indptr, source_ids)``: the source vertices working vertex i owns are
         ``source_ids[indptr[i]:indptr[i + 1]]`` (itself among them)."""
-        order = np.argsort(self.source_owner, kind="stable")
+        kept = np.flatnonzero(self.source_kept)   # a left-out piece's vertices are owned by none
+        owner = self.source_owner[kept]
+        order = kept[np.argsort(owner, kind="stable")]
         indptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
-        np.cumsum(np.bincount(self.source_owner, minlength=self.n_vertices), out=indptr[1:])
+        np.cumsum(np.bincount(owner, minlength=self.n_vertices), out=indptr[1:])
         return indptr, order.astype(np.int64)
 
 
@@ -347,9 +375,38 @@ def simplify(mesh: Mesh, n_vertices: int, *, aggressiveness: float = 7.0,
 
 
 
+def main_pieces(mesh: Mesh, min_fraction: float = MIN_PIECE) -> np.ndarray:
+    """Whether each vertex lies on a connected piece holding at least ``min_fraction`` of the
+    area: ``(n,)`` bool. All True for a mesh in one piece, and where those pieces hold less than
+    half of the area (a shape made of many small pieces is measured as it is)."""
+    if mesh.n_components == 1:
+        return np.ones(mesh.n_vertices, dtype=bool)
+    labels = mesh.component_labels
+    area = np.bincount(labels, weights=mesh.vertex_areas, minlength=mesh.n_components)
+    big = area >= min_fraction * area.sum()
+    if area[big].sum() < 0.5 * area.sum():
+        return np.ones(mesh.n_vertices, dtype=bool)
+    return big[labels]
+
+
 def working_mesh(mesh: Mesh, n_vertices: int | None) -> WorkingMesh:
-    """:func:`simplify` when ``n_vertices`` is given and smaller than the mesh, else the identity map."""
-    return simplify(mesh, mesh.n_vertices if n_vertices is None else n_vertices)
+    """The working mesh of ``mesh``: its :func:`main_pieces`, simplified by :func:`simplify` when
+    ``n_vertices`` is given and smaller than them; every vertex of ``mesh`` located on it (those
+    of a left-out piece around the working vertex nearest in space)."""
+    keep = main_pieces(mesh)
+    if keep.all():
+        return simplify(mesh, mesh.n_vertices if n_vertices is None else n_vertices)
+    from scipy.spatial import cKDTree
+
+    ids = np.flatnonzero(keep)
+    sub = simplify(mesh.submesh(keep), int(keep.sum()) if n_vertices is None else n_vertices)
+    owner = np.empty(mesh.n_vertices, dtype=np.int64)
+    owner[ids] = sub.source_owner
+    out = np.flatnonzero(~keep)
+    owner[out] = cKDTree(sub.mesh.vertices).query(mesh.vertices[out])[1]
+    logger.info("working mesh: %d pieces of under %g%% of the area left out (%d vertices)",
+                len(np.unique(mesh.component_labels[out])), 100 * MIN_PIECE, len(out))
+    return _locate(sub.mesh, mesh, ids[sub.vertex_ids], owner)
 
 
 @dataclass(frozen=True, eq=False)

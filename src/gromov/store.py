@@ -183,12 +183,17 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 def _arrays_sha256(shape: PointCloud, extra: dict | None = None) -> str:
-    """SHA-256 of a shape's arrays (kind, dtype, shape and bytes of each), and of ``extra``."""
+    """SHA-256 of a shape's arrays (kind, dtype, shape and bytes of each; the file index where
+    loading merged or dropped vertices), and of ``extra``."""
     h = hashlib.sha256()
     arrays = {"kind": np.array("mesh" if isinstance(shape, Mesh) else "cloud"), "vertices": shape.vertices,
               "input_ids": shape.input_ids}
     if isinstance(shape, Mesh):
         arrays["faces"] = shape.faces
+    fi = shape.file_index
+    if not (len(fi) == shape.n_vertices and np.array_equal(fi, np.arange(shape.n_vertices))):
+        arrays["file_index"] = fi   # file vertices that loading merged or dropped (else not hashed:
+        #                             the keys of shapes without any stay as they were)
     arrays.update(extra or {})
     for name in sorted(arrays):
         a = np.ascontiguousarray(arrays[name])
