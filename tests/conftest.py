@@ -9,7 +9,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+import gromov
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -40,6 +43,22 @@ def cat_working(tosca_cat0):
     import gromov
 
     return gromov.simplify(tosca_cat0, 3000)
+
+
+def body_and_debris(n_debris: int = 12, size: float = 0.05):
+    """An icosphere of radius 1 with ``n_debris`` tiny tetrahedra floating beside it."""
+    from gromov.shapes import icosphere
+
+    body = icosphere(3)
+    rng = np.random.default_rng(0)
+    tet = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    V, F, n = [np.array(body.vertices)], [np.array(body.faces)], body.n_vertices
+    for _ in range(n_debris):
+        V.append(tet * size * rng.uniform(0.8, 1.2, 3) + rng.normal(size=3) * 1.6)
+        F.append(tf + n)
+        n += 4
+    return gromov.Mesh(np.vstack(V), np.vstack(F)), body.n_vertices
 
 
 def pytest_collection_modifyitems(config, items):

@@ -344,3 +344,26 @@ def test_the_input_refinement_sharpens_a_real_map(data_dir):
     assert e_refined.mean < 0.5 * e_placed.mean
     assert np.median(e_refined.errors) == 0.0 < np.median(e_placed.errors)
     assert np.mean(refined.x_to_y_dense_vertex == ids) > 0.6
+
+
+def test_small_pieces_move_with_the_surface_under_a_similarity():
+    """A shape with 30 small pieces beside it against a rotated, scaled copy with its vertices
+    in another order: the pieces, left out of the metric, follow the motion of the surface
+    nearest to them, so every vertex lands on its own copy."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("make_corpus", Path(__file__).parent / "corpus" / "make_corpus.py")
+    corpus = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(corpus)
+    v, f = corpus.small_pieces()
+    X = gromov.Mesh(v, f)
+    q, _ = np.linalg.qr(np.random.default_rng(1).normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))                      # a rotation
+    perm = np.random.default_rng(2).permutation(X.n_vertices)
+    rank = np.argsort(perm)
+    Y = gromov.Mesh(1.3 * v[perm] @ q.T + [2.0, -1.0, 0.5], rank[f])
+    assert not gromov.resolution.main_pieces(X).all()
+    r = gromov.match(X, Y, n_samples=50, dense=True)
+    np.testing.assert_array_equal(r.x_to_y_dense_vertex, rank)
+    np.testing.assert_array_equal(r.y_to_x_dense_vertex, perm)

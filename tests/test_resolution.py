@@ -7,6 +7,8 @@ import gromov
 from gromov import MeshError, simplify
 from gromov.shapes import icosphere
 
+from conftest import body_and_debris
+
 
 def test_sphere_simplification_keeps_a_vertex_subset_and_topology():
     src = icosphere(5)
@@ -211,22 +213,8 @@ def test_gather_concatenates_the_lists_of_each_group():
     assert out_ptr.tolist() == [0, 2, 7] and out.tolist() == [10, 11, 10, 11, 20, 21, 22]
 
 
-def _body_and_debris(n_debris: int = 12, size: float = 0.05):
-    """An icosphere of radius 1 with ``n_debris`` tiny tetrahedra floating beside it."""
-    body = icosphere(3)
-    rng = np.random.default_rng(0)
-    tet = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-    V, F, n = [np.array(body.vertices)], [np.array(body.faces)], body.n_vertices
-    for _ in range(n_debris):
-        V.append(tet * size * rng.uniform(0.8, 1.2, 3) + rng.normal(size=3) * 1.6)
-        F.append(tf + n)
-        n += 4
-    return gromov.Mesh(np.vstack(V), np.vstack(F)), body.n_vertices
-
-
 def test_small_pieces_are_left_out_of_the_working_mesh_and_move_with_the_nearest_surface():
-    mesh, n_body = _body_and_debris()
+    mesh, n_body = body_and_debris()
     keep = gromov.resolution.main_pieces(mesh)
     assert keep[:n_body].all() and not keep[n_body:].any()
     w = gromov.working_mesh(mesh, None)
@@ -245,7 +233,7 @@ def test_small_pieces_are_left_out_of_the_working_mesh_and_move_with_the_nearest
 
 
 def test_a_mesh_made_of_small_pieces_is_kept_whole():
-    mesh, _ = _body_and_debris()
+    mesh, _ = body_and_debris()
     debris = mesh.submesh(np.arange(mesh.n_vertices) >= icosphere(3).n_vertices)   # 12 pieces of 1/12 each
     assert gromov.resolution.main_pieces(debris).all()
     # below 1% each, together less than half of the area: all of them

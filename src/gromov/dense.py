@@ -44,7 +44,7 @@ from .resolution import gather
 
 __all__ = ["DenseMap", "dense_maps", "anchored_map", "landmark_distances", "zoomout", "input_zoomout",
            "laplace_beltrami_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
-           "DENSE_REFINE", "REFINEMENTS"]
+           "DENSE_REFINE", "REFINEMENTS", "place_small_pieces", "PIECE_PATCH"]
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
@@ -390,6 +390,60 @@ def _at_vertices(mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return face, bary
 
 
+PIECE_PATCH = 30
+"""Vertices of the surface nearest to a left-out piece whose map gives the piece its motion
+(:func:`place_small_pieces`)."""
+
+
+def place_small_pieces(sx, sy, T: np.ndarray, *, patch: int = PIECE_PATCH) -> np.ndarray:
+    r"""Images of the vertices on X's small pieces, which the metric leaves out
+    (:func:`gromov.resolution.main_pieces`): each piece moves as the surface nearest to it.
+
+    A piece too small to carry its own samples is placed by the rigid motion (with scale) that
+    best carries the ``patch`` kept vertices of X nearest to its centroid onto their images,
+    :math:`\min_{s, R, t} \sum_i \lVert s R x_i + t - y_{T(i)} \rVert^2` (Umeyama, IEEE PAMI 13,
+    1991); each of its vertices, so moved, goes to the nearest vertex of Y's input mesh (a piece
+    of Y, such as an eye, where Y has one there). The rest of ``T`` is returned unchanged.
+
+    Parameters
+    ----------
+    sx, sy : ShapeMetric
+        Both meshes.
+    T : ndarray (n_X,) of int
+        Vertex of Y's input mesh for each vertex of X's input mesh.
+    patch : int, default PIECE_PATCH
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+    """
+    from scipy.spatial import cKDTree
+
+    T = np.array(T, dtype=np.int64)
+    kept = sx.working.source_kept
+    if kept.all():
+        return T
+    X, Y = sx.input.vertices, sy.input.vertices
+    on = np.flatnonzero(kept)
+    near = cKDTree(X[on])
+    targets = cKDTree(Y)
+    labels = sx.input.component_labels
+    out = np.flatnonzero(~kept)
+    for piece in np.unique(labels[out]):
+        v = out[labels[out] == piece]
+        _, nb = near.query(X[v].mean(0), k=min(patch, len(on)))
+        a, b = X[on[np.atleast_1d(nb)]], Y[T[on[np.atleast_1d(nb)]]]
+        ca, cb = a.mean(0), b.mean(0)
+        u, sig, vt = np.linalg.svd((b - cb).T @ (a - ca))
+        d = np.ones(3)
+        d[2] = np.sign(np.linalg.det(u @ vt)) or 1.0
+        R = u @ np.diag(d) @ vt
+        var = ((a - ca) ** 2).sum()
+        scale = float((sig * d).sum() / var) if var > 0 else 1.0
+        T[v] = targets.query(scale * (X[v] - ca) @ R.T + cb)[1]
+    return T
+
+
 def _segment_argmin(values: np.ndarray, ptr: np.ndarray) -> np.ndarray:
     """Index into ``values`` of the smallest value of each non-empty segment
     ``values[ptr[i]:ptr[i + 1]]`` (the first of equal ones)."""
@@ -442,5 +496,10 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         if refine == "input" and meshes:
             vertex = input_zoomout(a, b, vertex)
             face, bary = _at_vertices(b.input, vertex)
+        if meshes and not a.working.source_kept.all():   # small pieces move with the surface
+            vertex = place_small_pieces(a, b, vertex)
+            out = ~a.working.source_kept
+            face, bary = face.copy(), bary.copy()
+            face[out], bary[out] = _at_vertices(b.input, vertex[out])
         maps.append(_by_file_id(a, face, bary, b.input.input_ids[vertex]))
     return maps[0], maps[1]

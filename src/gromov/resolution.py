@@ -393,7 +393,7 @@ def working_mesh(mesh: Mesh, n_vertices: int | None) -> WorkingMesh:
     """The working mesh of ``mesh``: its :func:`main_pieces`, simplified by :func:`simplify` when
     ``n_vertices`` is given and smaller than them; every vertex of ``mesh`` located on it (those
     of a left-out piece around the working vertex nearest in space)."""
-    keep = main_pieces(mesh)
+    keep = main_pieces(mesh, MIN_PIECE)
     if keep.all():
         return simplify(mesh, mesh.n_vertices if n_vertices is None else n_vertices)
     from scipy.spatial import cKDTree
