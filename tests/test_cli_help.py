@@ -73,6 +73,7 @@ def test_the_fixture_has_every_subcommand_and_nested_help():
     want = json.loads(FIXTURE.read_text(encoding="utf-8"))
     for command in ("gromov --help", "gromov match --help", "gromov pairwise --help",
                     "gromov perturb --help", "gromov perturb weld --help", "gromov perturb holes --help",
+                    "gromov perturb cut --help",
                     "gromov reproduce --help", "gromov demo --help"):
         assert command in want, command
     assert want["gromov --help"].startswith("usage: gromov ")

@@ -1,9 +1,12 @@
-"""Topological noise (welds and holes): topology changes as stated, ground truth exact.
+"""Topological noise (welds and holes) and parts (cuts): topology changes as stated, ground
+truth exact.
 
 Facts checked: a geodesic disk removed from a sphere leaves chi = 2 - k and k boundary
 loops; a tube weld is a handle (chi - 2, boundary unchanged, still an oriented manifold),
 a pinch weld lowers chi by one; a weld turns a long way around the surface into a short
-hop across the gap; output vertices are input vertices (coordinates and file ids).
+hop across the gap; a plane cut of the unit sphere keeping a fraction f of the area lies at
+offset 2f - 1 (Archimedes' hat-box theorem); output vertices are input vertices
+(coordinates and file ids).
 """
 
 import json
@@ -14,7 +17,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from gromov import Mesh
 from gromov.metrics import GeodesicSolver
-from gromov.perturb import Perturbation, _star_cycle, holes, weld
+from gromov.perturb import Perturbation, _star_cycle, cut, holes, weld
 from gromov.shapes import grid, icosphere
 
 # ---------------------------------------------------------------------------- helpers
@@ -342,3 +345,166 @@ def test_far_pairs_is_the_edge_graph_distance_against_each_threshold():
     far = _far_pairs(m, pairs, threshold)
     assert 0 < far.sum() < len(pairs)
     np.testing.assert_array_equal(far, d > threshold)
+
+
+# ---------------------------------------------------------------------------- cut
+
+def two_spheres() -> Mesh:
+    """Two unit icospheres 3 apart: two components of equal area."""
+    s = icosphere(3)
+    return Mesh(np.vstack([s.vertices, s.vertices + [3.0, 0.0, 0.0]]),
+                np.vstack([s.faces, s.faces + s.n_vertices]))
+
+
+def area_fraction(p: Perturbation, mesh: Mesh) -> float:
+    return p.mesh.area / mesh.area
+
+
+@pytest.mark.parametrize("keep", [0.25, 0.6, 0.8])
+def test_cut_plane_on_sphere_is_a_cap_at_the_hat_box_offset(keep):
+    sphere = icosphere(4)   # unit sphere
+    p = cut(sphere, keep, kind="plane", seed=1)
+    assert p.kind == "cut" and p.params["kind"] == "plane" and p.sites.shape == (0,)
+    assert abs(area_fraction(p, sphere) - keep) <= 0.02
+    assert p.params["kept"] == pytest.approx(area_fraction(p, sphere))
+    check_ground_truth(p, sphere)
+    check_oriented_manifold(p.mesh)
+    # one side of the plane: every part vertex, and every input vertex on that side is kept
+    # (a cap of a convex shape is one piece)
+    n, t = np.asarray(p.params["normal"]), p.params["offset"]
+    assert np.linalg.norm(n) == pytest.approx(1.0)
+    assert (p.mesh.vertices @ n <= t).all()
+    np.testing.assert_array_equal(p.vertex_map, np.flatnonzero(sphere.vertices @ n <= t))
+    # a cap {n.x <= t} of the unit sphere holds (1 + t) / 2 of its area; the faces across the
+    # plane are lost, so the discrete offset lies within about an edge of 2 keep - 1
+    assert abs(t - (2 * keep - 1)) < 2 * sphere.edge_lengths.max()
+    # a disk: one component, one boundary loop
+    assert p.mesh.n_components == 1 and (p.euler_after, p.boundary_loops_after) == (1, 1)
+
+
+def test_cut_holes_on_sphere_removes_disks_around_the_centres():
+    sphere = icosphere(4)
+    p = cut(sphere, 0.7, kind="holes", count=4, seed=2)
+    assert p.params["kind"] == "holes" and p.params["count"] == 4 and p.sites.shape == (4,)
+    assert abs(area_fraction(p, sphere) - 0.7) <= 0.02
+    check_ground_truth(p, sphere)
+    check_oriented_manifold(p.mesh)
+    # every part vertex is at least the radius from every centre (edge-graph distance); the
+    # centres are gone and nothing farther than the radius plus an edge is lost but slivers
+    d = dijkstra(sphere.adjacency, directed=False, indices=p.sites, min_only=True)
+    r = p.params["radius"]
+    assert d[p.vertex_map].min() >= r and not np.isin(p.sites, p.vertex_map).any()
+    far = np.flatnonzero(d > r + sphere.edge_lengths.max())
+    assert np.isin(far, p.vertex_map).mean() > 0.99
+    assert p.mesh.n_components == 1 and p.boundary_loops_after >= 1
+
+
+def test_cut_is_seeded():
+    sphere = icosphere(3)
+    for kind in ("plane", "holes"):
+        a, b, c = (cut(sphere, 0.6, kind=kind, seed=s) for s in (7, 7, 8))
+        np.testing.assert_array_equal(a.vertex_map, b.vertex_map)
+        np.testing.assert_array_equal(a.mesh.faces, b.mesh.faces)
+        np.testing.assert_array_equal(a.sites, b.sites)
+        assert a.params == b.params
+        assert not np.array_equal(a.vertex_map, c.vertex_map)
+    g = cut(sphere, 0.6, seed=np.random.default_rng(7))   # a Generator: used, not recorded
+    assert g.params["seed"] is None and np.array_equal(g.vertex_map, cut(sphere, 0.6, seed=7).vertex_map)
+
+
+def test_cut_keeps_the_largest_piece():
+    """Two equal spheres: a plane keeping 40% leaves one piece; 80% can't be one piece."""
+    m = two_spheres()
+    p = cut(m, 0.4, kind="plane", seed=0)
+    assert abs(area_fraction(p, m) - 0.4) <= 0.02 and p.mesh.n_components == 1
+    check_ground_truth(p, m)
+    with pytest.raises(ValueError, match=r"no plane direction out of max_tries=3 keeps 0.8 \+- 0.02 of "
+                                         r"the area in one piece \(nearest: 0.500\)"):
+        cut(m, 0.8, seed=0, max_tries=3)
+
+
+def test_cut_on_tosca_cat_is_a_valid_part_with_exact_ground_truth(tosca_cat0, cat_working, tmp_path):
+    """Parts of the working cat: fraction within 2%, one clean piece that gromov loads as it is,
+    and each part vertex's file id gives its coordinates on the full-resolution cat."""
+    import warnings
+
+    import gromov
+
+    cat = cat_working.mesh
+    for kind in ("plane", "holes"):
+        for keep in (0.4, 0.8):
+            p = cut(cat, keep, kind=kind, seed=3)
+            assert abs(area_fraction(p, cat) - keep) <= 0.02
+            check_ground_truth(p, cat)
+            check_oriented_manifold(p.mesh)
+            assert p.mesh.n_components == 1 and (p.mesh.face_areas > 0).all()
+            np.testing.assert_array_equal(p.mesh.vertices, tosca_cat0.vertices[p.mesh.input_ids])
+            path = tmp_path / f"{kind}{keep}.off"
+            gromov.save(p.mesh, path)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")           # repair would warn
+                back = gromov.load(path)
+            np.testing.assert_array_equal(back.faces, p.mesh.faces)
+            np.testing.assert_allclose(back.vertices, p.mesh.vertices)
+
+
+def test_cut_errors():
+    sphere = icosphere(2)
+    with pytest.raises(TypeError, match="mesh must be a gromov.Mesh, got ndarray"):
+        cut(sphere.vertices, 0.5)
+    for bad in (0, 1, 0.0, 1.0, -0.2, 1.5, float("nan"), float("inf"), True, "0.5"):
+        with pytest.raises(ValueError, match=f"keep must be a fraction of the area strictly between 0 and 1, "
+                                             f"got {bad!r}"):
+            cut(sphere, bad)
+    with pytest.raises(ValueError, match=r"kind must be one of \('plane', 'holes'\), got 'slice'"):
+        cut(sphere, 0.5, kind="slice")
+    with pytest.raises(ValueError, match="count applies to kind='holes', not to kind='plane'"):
+        cut(sphere, 0.5, count=3)
+    with pytest.raises(ValueError, match="count must be a positive integer, got 0"):
+        cut(sphere, 0.5, kind="holes", count=0)
+    with pytest.raises(ValueError, match="tol must be a fraction of the area strictly between 0 and 1, got 0"):
+        cut(sphere, 0.5, tol=0)
+    with pytest.raises(ValueError, match="count=1000 exceeds the 162 vertices"):
+        cut(sphere, 0.5, kind="holes", count=1000)
+
+
+def test_cli_cut_writes_the_part_and_its_ground_truth(tmp_path, capsys):
+    import gromov
+    from gromov.cli import main
+
+    sphere = icosphere(4)
+    src = tmp_path / "sphere.off"
+    gromov.save(sphere, src)
+    for kind in (None, "holes"):
+        out = tmp_path / f"part-{kind}.ply"
+        args = ["perturb", "cut", str(src), str(out), "--keep", "0.6", "--seed", "4"]
+        assert main(args + ([] if kind is None else ["--kind", kind, "--count", "3"])) == 0
+        said = capsys.readouterr().out
+        assert f"cut ({kind or 'plane'}), 6" in said and f"part-{kind}.map.npz" in said
+        part = gromov.load(out)
+        z = np.load(tmp_path / f"part-{kind}.map.npz")
+        assert str(z["kind"]) == "cut"
+        params = json.loads(str(z["params"]))
+        assert params["kind"] == (kind or "plane") and abs(part.area / sphere.area - 0.6) <= 0.02
+        # part vertex i is input vertex vertex_map[i] (0-based file ids)
+        np.testing.assert_allclose(part.vertices, sphere.vertices[z["vertex_map"]])
+        same = cut(sphere, 0.6, kind=kind or "plane", count=None if kind is None else 3, seed=4)
+        np.testing.assert_array_equal(z["vertex_map"], same.vertex_map)
+        if kind == "holes":
+            np.testing.assert_array_equal(z["sites"], same.sites)
+    out = str(tmp_path / "p.off")
+    for bad in ("1.5", "0", "x"):     # refused by the parser: usage and exit status 2
+        with pytest.raises(SystemExit) as exit_:
+            main(["perturb", "cut", str(src), out, "--keep", bad])
+        assert exit_.value.code == 2
+        assert "argument --keep: expected a fraction" in capsys.readouterr().err
+    for extra, message in (([], "cut needs --keep"),
+                           (["--keep", "0.5", "--radius", "1"], "--radius applies to weld and holes, not to cut"),
+                           (["--keep", "0.5", "--count", "2"], "--count applies to cut --kind holes"),
+                           (["--keep", "0.5", "--join", "tube"], "--join applies to weld, not to cut")):
+        assert main(["perturb", "cut", str(src), out] + extra) == 2
+        assert message in capsys.readouterr().err
+    assert main(["perturb", "holes", str(src), out, "--count", "1", "--keep", "0.5"]) == 2
+    assert "--keep applies to cut, not to holes" in capsys.readouterr().err
+    assert main(["perturb", "weld", str(src), out]) == 2
+    assert "weld needs --count: the number of welds" in capsys.readouterr().err

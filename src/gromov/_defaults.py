@@ -3,7 +3,8 @@
 They live here, in a module that imports nothing, so that ``gromov --help`` builds its parser
 without loading numba, scipy or the compiled kernels. Each is documented where it is used
 (re-exported there under the same name): :mod:`gromov.gh` (``DEFAULT_RESOLUTION``,
-``RANK_TAU_SCALE``, ``RANK_RESIDUAL``), :mod:`gromov.perturb` (``WELD_JOINS``), :mod:`gromov.io`
+``RANK_TAU_SCALE``, ``RANK_RESIDUAL``), :mod:`gromov.perturb` (``WELD_JOINS``, ``CUT_KINDS``,
+``CUT_PATCHES``), :mod:`gromov.io`
 (``GZIP_RATIO``, ``GZIP_FLOOR``), :mod:`gromov.metrics` (``DIFFUSION_FILL_HOLES``),
 :mod:`gromov.metrics.diffusion` (``HEAT_UNITS``, ``DEFAULT_UNITS``),
 :mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``) and :mod:`gromov.retrieval`
@@ -15,6 +16,8 @@ RANK_TAU_SCALE = 0.5
 RANK_RESIDUAL = "log"
 RANK_RESIDUALS = ("difference", "log")
 WELD_JOINS = ("tube", "pinch")
+CUT_KINDS = ("plane", "holes")
+CUT_PATCHES = 5
 GZIP_RATIO = 100
 GZIP_FLOOR = 16 * 2**20
 DIFFUSION_FILL_HOLES = 0.5

@@ -1,4 +1,4 @@
-"""Topological noise: welds (self-contacts glued together) and holes.
+"""Topological noise -- welds (self-contacts glued together) and holes -- and parts (cuts).
 
 Bronstein, Bronstein, Mahmoudi, Kimmel & Sapiro, "A Gromov-Hausdorff framework with
 diffusion geometry for topologically-robust non-rigid shape matching", IJCV 89 (2010),
@@ -13,7 +13,10 @@ all paths, change little. This module makes such shapes with a known ground trut
   "Topological KIDS" shapes have merged into handles);
 - :func:`holes` removes ``count`` geodesic disks.
 
-Both return a :class:`Perturbation` whose ``vertex_map`` gives, for every output vertex,
+:func:`cut` makes a *part* instead, as SHREC'16 Partial Matching of Deformable Shapes did: one
+side of a plane, or the surface outside large patches, holding a stated fraction of the area.
+
+All three return a :class:`Perturbation` whose ``vertex_map`` gives, for every output vertex,
 its vertex in the input mesh, and whose output ``mesh.input_ids`` equal
 ``input.input_ids[vertex_map]`` (the file ids survive). Output vertices keep their input
 coordinates exactly, so Euclidean distances between surviving vertices are unchanged.
@@ -37,11 +40,12 @@ from scipy.sparse.csgraph import dijkstra
 from .mesh import Mesh
 from .metrics._fmm import _FROZEN, _UNSEEN, _pop, _sift_up
 
-__all__ = ["Perturbation", "weld", "holes", "WELD_JOINS", "WELD_RESOLUTION"]
+__all__ = ["Perturbation", "weld", "holes", "cut", "WELD_JOINS", "WELD_RESOLUTION", "CUT_KINDS",
+           "CUT_PATCHES"]
 
 logger = logging.getLogger(__name__)
 
-from ._defaults import WELD_JOINS  # noqa: E402
+from ._defaults import CUT_KINDS, CUT_PATCHES, WELD_JOINS  # noqa: E402
 #: :func:`weld` searches its sites on a copy of at most this many vertices: the candidate
 #: pairs of a 28k-vertex TOSCA cat at 5 edge lengths take minutes and gigabytes on the mesh
 #: itself, about a second on the copy (docs/design/perturbations.md).
@@ -53,7 +57,7 @@ WELD_RADIUS_EDGES, WELD_RADIUS_GROWTH, WELD_RADIUS_TRIES = 5.0, 1.5, 4
 
 @dataclass(frozen=True, eq=False)
 class Perturbation:
-    """A mesh with topological noise and the ground truth back to the clean mesh.
+    """A mesh with topological noise, or a part of it, and the ground truth back to the input.
 
     Attributes
     ----------
@@ -63,7 +67,7 @@ class Perturbation:
         Index in the input mesh of each output vertex (ground-truth correspondence).
         Output vertex ``i`` has exactly the coordinates of input vertex ``vertex_map[i]``.
     kind : str
-        ``"weld"`` or ``"holes"``.
+        ``"weld"``, ``"holes"`` or ``"cut"`` (its own kind, plane or holes, in ``params``).
     euler_before, euler_after : int
         Euler characteristic ``V - E + F`` of the input and of the output.
     boundary_loops_before, boundary_loops_after : int
@@ -71,12 +75,14 @@ class Perturbation:
     sites : ndarray of int64
         Where the noise was put, as vertex indices of the *input* mesh (like
         ``vertex_map``; the file ids are ``input.input_ids[sites]``).
-        ``weld``: ``(K, 2)`` welded vertex pairs ``(u, v)``; ``holes``: ``(K,)`` hole centres.
+        ``weld``: ``(K, 2)`` welded vertex pairs ``(u, v)``; ``holes``: ``(K,)`` hole centres;
+        ``cut``: the patches' centres ``(K,)``, or ``(0,)`` for a plane.
     params : dict
         The parameters used, defaults resolved (``count``, ``radius``, ``seed``, ...), and
         derived quantities: for welds ``diameter`` (edge-graph), ``min_geodesic``,
         ``n_candidates`` and ``gaps`` (Euclidean length of each weld); for holes
-        ``min_separation`` and ``dropped_vertices`` (slivers cut off and dropped).
+        ``min_separation`` and ``dropped_vertices`` (slivers cut off and dropped); for a cut
+        ``kept`` (the part's fraction of the area) and the plane or the patches (:func:`cut`).
     """
 
     mesh: Mesh
@@ -674,4 +680,196 @@ def holes(mesh: Mesh, count: int, *, radius: float | None = None, seed=0) -> Per
     res = _result(mesh, out, np.flatnonzero(keep), "holes", centres, params)
     logger.info("holes: %d holes of radius %.4g, %d -> %d vertices, boundary loops %d -> %d", count, r,
                 mesh.n_vertices, out.n_vertices, res.boundary_loops_before, res.boundary_loops_after)
+    return res
+
+
+# ---------------------------------------------------------------------------- cut
+def _check_fraction(value, name: str) -> float:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not 0.0 < value < 1.0:
+        raise ValueError(f"{name} must be a fraction of the area strictly between 0 and 1, got {value!r}")
+    return float(value)
+
+
+def _largest_piece(faces: np.ndarray, face_areas: np.ndarray, kept: np.ndarray) -> tuple[float, np.ndarray]:
+    """Area of the largest connected piece of the faces whose three vertices are ``kept``
+    (pieces joined through a vertex count as one), and its vertex mask."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(kept)
+    fk = kept[faces].all(axis=1)
+    if not fk.any():
+        return 0.0, np.zeros(n, bool)
+    f = faces[fk]
+    g = coo_matrix((np.ones(2 * len(f)), (np.r_[f[:, 0], f[:, 1]], np.r_[f[:, 1], f[:, 2]])), shape=(n, n))
+    _, labels = connected_components(g, directed=False)
+    area = np.bincount(labels[f[:, 0]], weights=face_areas[fk])
+    best = int(np.argmax(area))
+    used = np.zeros(n, bool)
+    used[f[labels[f[:, 0]] == best].ravel()] = True
+    return float(area[best]), used
+
+
+def _clean_piece(mesh: Mesh, kept: np.ndarray, b0: np.ndarray) -> np.ndarray:
+    """The largest piece of ``kept`` as a clean surface: no bow-tie vertex that the input did
+    not have, no vertex without a face (:func:`_clean_removal`), one connected component."""
+    F, fa = mesh.faces, mesh.face_areas
+    while True:
+        clean = _clean_removal(F, ~kept, b0)
+        _, piece = _largest_piece(F, fa, clean)
+        if np.array_equal(piece, kept):
+            return piece
+        kept = piece
+
+
+def _threshold_part(mesh: Mesh, field: np.ndarray, keep: float, total: float,
+                    iterations: int = 60) -> tuple[float, np.ndarray]:
+    """Bisection on ``t`` for the largest piece of ``{field <= t}`` holding ``keep`` of the area.
+
+    That piece's area never decreases with ``t`` (the kept set only grows, its pieces only grow
+    or merge), but it jumps where two pieces merge. Returns the threshold whose piece's area is
+    nearest ``keep * total``, of the two that bracket it, and that piece (not yet cleaned)."""
+    F, fa = mesh.faces, mesh.face_areas
+    ref = mesh.referenced
+    lo, hi = float(field[ref].min()) - 1.0, float(field[ref].max())
+    span = hi - lo
+    area_hi, piece_hi = _largest_piece(F, fa, ref & (field <= hi))
+    area_lo, piece_lo = 0.0, np.zeros(len(field), bool)
+    target = keep * total
+    for _ in range(iterations):
+        if hi - lo <= 1e-12 * span:
+            break
+        t = 0.5 * (lo + hi)
+        area, piece = _largest_piece(F, fa, ref & (field <= t))
+        if area >= target:
+            hi, area_hi, piece_hi = t, area, piece
+        else:
+            lo, area_lo, piece_lo = t, area, piece
+    if abs(area_lo - target) < abs(area_hi - target):
+        return lo, piece_lo
+    return hi, piece_hi
+
+
+def cut(mesh: Mesh, keep: float = 0.6, *, kind: str = "plane", count: int | None = None, seed=0,
+        tol: float = 0.02, max_tries: int = 20) -> Perturbation:
+    """A part of ``mesh`` holding a stated fraction ``keep`` of its area: a plane cut or large holes.
+
+    The partial shapes of SHREC'16 *Partial Matching of Deformable Shapes* (Cosmo, Rodolà,
+    Bronstein, Torsello, Cremers & Sahillioğlu, Eurographics 3DOR 2016): TOSCA shapes with
+    *cuts* (one side of a plane) and *holes* (removed patches), the part to be matched against
+    a whole shape in another pose. The part is a subset of the input's vertices and faces:
+
+    - ``kind="plane"``: the vertices on one side of a plane, :math:`n \\cdot x \\le t`, with
+      ``n`` a uniformly random unit direction (from ``seed``);
+    - ``kind="holes"``: the vertices outside ``count`` geodesic disks of a common radius,
+      :math:`\\min_k d_G(c_k, x) > r`, with the centres ``c_k`` drawn at random, weighted by
+      vertex area (uniform on the surface), and ``d_G`` the shortest path along edges.
+
+    Faces are kept when all three of their vertices are. The offset ``t`` (the radius ``r``) is
+    found by bisection so that the part holds ``keep`` of the input's area. Only the **largest
+    connected piece** is kept -- a plane across the legs leaves the feet apart, big holes cut
+    off a tail -- since a part in pieces has no finite geodesic distances between them; the
+    bisection measures that piece's area, which grows with ``t`` but jumps where two pieces
+    merge. When the piece nearest the target is further than ``tol`` from it, another direction
+    (other centres) is drawn, up to ``max_tries`` times. Bow-tie vertices (two fans of faces
+    meeting at one vertex) that the selection makes are removed with their faces, as in
+    :func:`holes`. The part is a valid mesh for gromov: every vertex in a face, every face an
+    input face (no new zero-area face), one component.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    keep : float, default 0.6
+        Fraction of the input's area the part holds, strictly between 0 and 1.
+    kind : {"plane", "holes"}, default "plane"
+    count : int, optional
+        ``kind="holes"``: number of disks, default :data:`CUT_PATCHES` (5). Disks may overlap
+        and merge into one hole. Not used by ``"plane"``.
+    seed : int, Generator or None, default 0
+        The plane's direction (the disks' centres), and those of the further tries.
+    tol : float, default 0.02
+        Largest accepted difference between the part's area fraction and ``keep``.
+    max_tries : int, default 20
+        Directions (sets of centres) drawn before giving up.
+
+    Returns
+    -------
+    Perturbation
+        ``kind="cut"``; ``vertex_map`` the input vertex of each part vertex (the ground truth of
+        part -> whole), ``sites`` the disk centres (input indices, ``(count,)``) for holes and
+        empty for a plane. ``params``: ``kind``, ``keep``, ``kept`` (the part's area over the
+        input's), ``tol``, ``seed``, ``tries`` (draws used), ``side_fraction`` (area of the
+        whole kept side, all its pieces, over the input's); for a plane ``normal`` and
+        ``offset`` (the part is ``vertices @ normal <= offset``), for holes ``count`` and
+        ``radius`` (edge-graph).
+
+    Raises
+    ------
+    ValueError
+        For ``keep`` outside (0, 1), an unknown ``kind`` or another invalid parameter, and when
+        no draw within ``max_tries`` gives a piece within ``tol`` of ``keep`` (the message says
+        the nearest fraction found).
+    TypeError
+        When ``mesh`` is not a :class:`~gromov.Mesh`.
+
+    Examples
+    --------
+    >>> p = cut(cat, 0.6, kind="plane", seed=0)                  # doctest: +SKIP
+    >>> round(p.params["kept"], 2), p.mesh.n_components           # doctest: +SKIP
+    (0.6, 1)
+    >>> truth = p.mesh.input_ids    # the input's vertex of each part vertex   # doctest: +SKIP
+    """
+    mesh = _check_mesh(mesh)
+    keep = _check_fraction(keep, "keep")
+    if kind not in CUT_KINDS:
+        raise ValueError(f"kind must be one of {CUT_KINDS}, got {kind!r}")
+    if count is not None and kind != "holes":
+        raise ValueError(f"count applies to kind='holes', not to kind={kind!r}")
+    count = CUT_PATCHES if count is None else _check_count(count)
+    tol = _check_fraction(tol, "tol")
+    max_tries = _check_count(max_tries)
+    ref = np.flatnonzero(mesh.referenced)
+    if kind == "holes" and count > len(ref):
+        raise ValueError(f"count={count} exceeds the {len(ref)} vertices of the mesh")
+    total = float(mesh.area)
+    X, A = mesh.vertices, mesh.adjacency
+    b0 = _boundary_valence(mesh.faces, mesh.n_vertices)
+    rng = _rng(seed)
+    best = None
+    for attempt in range(1, max_tries + 1):
+        if kind == "plane":
+            normal = rng.normal(size=3)
+            normal /= np.linalg.norm(normal)
+            field = X @ normal
+            centres = np.zeros(0, np.int64)
+        else:
+            w = mesh.vertex_areas[ref]
+            centres = np.sort(rng.choice(ref, size=count, replace=False, p=w / w.sum()))
+            field = -dijkstra(A, directed=False, indices=centres, min_only=True)
+        t, piece = _threshold_part(mesh, field, keep, total)
+        part = _clean_piece(mesh, piece, b0)
+        kept = float(mesh.face_areas[part[mesh.faces].all(axis=1)].sum()) / total
+        if best is None or abs(kept - keep) < abs(best[0] - keep):
+            best = (kept, t, part, centres, field, normal if kind == "plane" else None)
+        if abs(kept - keep) <= tol:
+            break
+        logger.info("cut: draw %d keeps %.3f of the area (target %.3f +- %.3f); drawing again",
+                    attempt, kept, keep, tol)
+    kept, t, part, centres, field, normal = best
+    if abs(kept - keep) > tol:
+        what = "plane direction" if kind == "plane" else f"set of {count} centres"
+        raise ValueError(
+            f"no {what} out of max_tries={max_tries} keeps {keep:g} +- {tol:g} of the area in one "
+            f"piece (nearest: {kept:.3f}): the shape's largest piece jumps past it where parts "
+            "join; raise tol or max_tries, or choose another keep")
+    side = mesh.referenced & (field <= t)
+    params = {"kind": kind, "keep": keep, "kept": kept, "tol": tol, "seed": _seed_param(seed),
+              "tries": attempt, "side_fraction": float(mesh.face_areas[side[mesh.faces].all(axis=1)].sum()) / total}
+    if kind == "plane":
+        params.update(normal=normal.tolist(), offset=float(t))
+    else:
+        params.update(count=count, radius=float(-t))
+    res = _result(mesh, mesh.submesh(part), np.flatnonzero(part), "cut", centres, params)
+    logger.info("cut (%s): %d -> %d vertices, %.3f of the area kept, boundary loops %d -> %d", kind,
+                mesh.n_vertices, res.mesh.n_vertices, kept, res.boundary_loops_before, res.boundary_loops_after)
     return res
