@@ -10,7 +10,8 @@ pieces under 1% of the area left out, moving with the surface nearest to them (t
 It reports the samples on the pieces, the diffusion diameter over the body's, and the dense
 error x 100 / sqrt(area) (geodesic on the input mesh of Y, :func:`gromov.evaluate.dense_errors`)
 on the body's vertices and on the pieces' vertices (an image on another piece than the truth's
-has no finite geodesic error: counted apart, as "elsewhere").
+has no finite geodesic error: counted apart, as "elsewhere"; the straight-line error of every
+image is reported beside it).
 """
 
 from __future__ import annotations
@@ -49,10 +50,13 @@ def one_pair(X: gromov.Mesh, Y: gromov.Mesh, min_piece: float) -> dict:
     out = {"min_piece": min_piece, "samples_on_pieces": on_pieces, "seconds": seconds,
            "diameter_over_body": float(sx.diameter / np.max(sx.distances[np.ix_(labels == body, labels == body)])),
            "gh": float(r.distance)}
+    image = Y.vertices[Y.from_input_ids(r.x_to_y_dense_vertex[ok])]
+    straight = np.linalg.norm(image - Y.vertices[Y.file_index[ok]], axis=1) * 100 / np.sqrt(Y.area)
     for name, m in (("body", main), ("pieces", ~main)):
         fin = np.isfinite(e[m])
         out[name] = {"vertices": int(m.sum()), "mean": float(e[m][fin].mean()), "median": float(np.median(e[m][fin])),
-                     "elsewhere": int((~fin).sum())}
+                     "elsewhere": int((~fin).sum()), "euclidean_mean": float(straight[m].mean()),
+                     "euclidean_median": float(np.median(straight[m]))}
     return out
 
 
@@ -71,7 +75,8 @@ def main(argv=None) -> int:
             print(f"{row['pair']:20s} pieces {'in ' if min_piece == 0 else 'out'}: samples on pieces "
                   f"{row['samples_on_pieces']:3d}, diameter/body {row['diameter_over_body']:6.1f}, body "
                   f"{row['body']['mean']:6.2f} / {row['body']['median']:5.2f}, pieces {row['pieces']['mean']:6.2f} / "
-                  f"{row['pieces']['median']:5.2f} ({row['pieces']['elsewhere']} elsewhere), {row['seconds']:.0f} s",
+                  f"{row['pieces']['median']:5.2f} ({row['pieces']['elsewhere']} elsewhere; straight "
+                  f"{row['pieces']['euclidean_mean']:5.2f} / {row['pieces']['euclidean_median']:5.2f}), {row['seconds']:.0f} s",
                   flush=True)
     write_results(args.json, {"command": "benchmarks/studies/small_pieces.py", "pairs": rows})
     return 0

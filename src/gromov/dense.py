@@ -402,8 +402,9 @@ def place_small_pieces(sx, sy, T: np.ndarray, *, patch: int = PIECE_PATCH) -> np
     A piece too small to carry its own samples is placed by the rigid motion (with scale) that
     best carries the ``patch`` kept vertices of X nearest to its centroid onto their images,
     :math:`\min_{s, R, t} \sum_i \lVert s R x_i + t - y_{T(i)} \rVert^2` (Umeyama, IEEE PAMI 13,
-    1991); each of its vertices, so moved, goes to the nearest vertex of Y's input mesh (a piece
-    of Y, such as an eye, where Y has one there). The rest of ``T`` is returned unchanged.
+    1991); each of its vertices, so moved, goes to the nearest vertex of Y's small pieces (an eye
+    to an eye) where one lies within the patch's radius or as near as any vertex of Y, else to
+    the nearest vertex of Y's input mesh. The rest of ``T`` is returned unchanged.
 
     Parameters
     ----------
@@ -427,6 +428,8 @@ def place_small_pieces(sx, sy, T: np.ndarray, *, patch: int = PIECE_PATCH) -> np
     on = np.flatnonzero(kept)
     near = cKDTree(X[on])
     targets = cKDTree(Y)
+    y_out = np.flatnonzero(~sy.working.source_kept)
+    y_pieces = cKDTree(Y[y_out]) if len(y_out) else None
     labels = sx.input.component_labels
     out = np.flatnonzero(~kept)
     for piece in np.unique(labels[out]):
@@ -440,7 +443,13 @@ def place_small_pieces(sx, sy, T: np.ndarray, *, patch: int = PIECE_PATCH) -> np
         R = u @ np.diag(d) @ vt
         var = ((a - ca) ** 2).sum()
         scale = float((sig * d).sum() / var) if var > 0 else 1.0
-        T[v] = targets.query(scale * (X[v] - ca) @ R.T + cb)[1]
+        moved = scale * (X[v] - ca) @ R.T + cb
+        d_all, T[v] = targets.query(moved)
+        if y_pieces is not None:   # onto a small piece of Y where one is about as near
+            d_piece, j = y_pieces.query(moved)
+            reach = max(float(np.sqrt(((b - cb) ** 2).sum(1).mean())), 0.0)
+            onto = d_piece <= np.maximum(d_all, reach)
+            T[v[onto]] = y_out[j[onto]]
     return T
 
 
