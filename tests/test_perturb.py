@@ -413,11 +413,16 @@ def test_cut_is_seeded():
 
 
 def test_cut_keeps_the_largest_piece():
-    """Two equal spheres: a plane keeping 40% leaves one piece; 80% can't be one piece."""
+    """Two equal spheres: a plane keeping 40% leaves one piece; 80% can't be one piece. Holes
+    on one sphere (the other is infinitely far from their centres) leave it whole or in part."""
     m = two_spheres()
     p = cut(m, 0.4, kind="plane", seed=0)
     assert abs(area_fraction(p, m) - 0.4) <= 0.02 and p.mesh.n_components == 1
     check_ground_truth(p, m)
+    for keep in (0.3, 0.45):
+        h = cut(m, keep, kind="holes", count=2, seed=1)
+        assert abs(area_fraction(h, m) - keep) <= 0.02 and h.mesh.n_components == 1
+        check_ground_truth(h, m)
     with pytest.raises(ValueError, match=r"no plane direction out of max_tries=3 keeps 0.8 \+- 0.02 of "
                                          r"the area in one piece \(nearest: 0.500\)"):
         cut(m, 0.8, seed=0, max_tries=3)

@@ -728,10 +728,12 @@ def _threshold_part(mesh: Mesh, field: np.ndarray, keep: float, total: float,
 
     That piece's area never decreases with ``t`` (the kept set only grows, its pieces only grow
     or merge), but it jumps where two pieces merge. Returns the threshold whose piece's area is
-    nearest ``keep * total``, of the two that bracket it, and that piece (not yet cleaned)."""
+    nearest ``keep * total``, of the two that bracket it, and that piece (not yet cleaned).
+    Vertices where ``field`` is -inf (another component than the holes' centres) are always kept."""
     F, fa = mesh.faces, mesh.face_areas
     ref = mesh.referenced
-    lo, hi = float(field[ref].min()) - 1.0, float(field[ref].max())
+    finite = field[ref & np.isfinite(field)]
+    lo, hi = float(finite.min()) - 1.0, float(finite.max())
     span = hi - lo
     area_hi, piece_hi = _largest_piece(F, fa, ref & (field <= hi))
     area_lo, piece_lo = 0.0, np.zeros(len(field), bool)
