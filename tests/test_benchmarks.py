@@ -315,6 +315,33 @@ def test_cloud_sampling_benchmark_compares_like_with_like():
         assert abs(r["radius_fpsample_vanilla"] / r["radius_ours"] - 1) < 0.2
 
 
+def test_partial_benchmark_measures_coverage_and_the_cut():
+    """bench_partial.py: the keeps spread over the stated ranges, a perfect map covers the true
+    region (IoU 1), the distance to the cut is the edge-graph distance to the part's new boundary
+    (0 on it), and a loop shorter than 0.5 sqrt(area) counts as closed by the metric."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from gromov.perturb import cut
+    from gromov.shapes import icosphere
+
+    bp = _module("bench_partial")
+    assert bp.keeps("plane", 4) == pytest.approx([0.45, 0.55, 0.65, 0.75])
+    assert bp.keeps("holes", 2) == pytest.approx([0.65, 0.75])
+    sphere = icosphere(4)
+    p = cut(sphere, 0.5, seed=0)
+    part, truth = p.mesh, p.vertex_map
+    region = bp.grow(sphere, truth)
+    assert region.sum() > len(truth) and bp.iou(bp.grow(sphere, truth), region) == 1.0
+    assert bp.iou(bp.grow(sphere, truth[: len(truth) // 2]), region) < 1.0
+    d = bp.cut_distance(part, truth, sphere)
+    boundary = np.unique(part.boundary_edges.ravel())
+    assert (d[boundary] == 0).all() and (np.delete(d, boundary) > 0).all()
+    np.testing.assert_allclose(d, dijkstra(part.adjacency, directed=False, indices=boundary, min_only=True))
+    assert bp.fill_closed(part, truth, sphere) == (0, 1)          # a hemisphere's rim: open
+    small = cut(sphere, 0.99, seed=0)                              # a small cap cut off: closed
+    assert bp.fill_closed(small.mesh, small.vertex_map, sphere) == (1, 1)
+
+
 def test_dense_tables_are_the_results_files():
     """docs/benchmarks.md's dense-map tables hold bench_dense.py's numbers (both results files)."""
     page = BENCHMARKS_PAGE.read_text()
