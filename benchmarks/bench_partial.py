@@ -42,7 +42,9 @@ that uses it), evaluation excluded.
 Coverage: the region of the whole the part covers, as a map implies it -- the whole vertices
 nearest to the image of some part vertex, grown by one ring -- against the true one -- the whole
 vertices that are the truth of some part vertex, grown by one ring (the same construction, so a
-perfect map has IoU 1): intersection over union, per pair, averaged per kind.
+perfect map has IoU 1): intersection over union, per pair, averaged per kind; beside it the IoU
+of a map claiming every vertex of the whole (the true region's share of them), the score of
+knowing nothing (``--add-baseline`` adds it to a results file made without it).
 
 Diagnostics of ``ours`` (why a part fails), on the part's 100 samples in the match's own metric
 (normalised heat diffusion) ÷ the whole's diameter in it: the one-sided RMS distortion of the
@@ -280,6 +282,7 @@ def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: flo
     maps["pyfm"] = (*at_vertices(whole, p2p), p2p)
 
     true_region = grow(whole, truth)
+    row["iou_whole_shape"] = float(true_region.mean())   # the IoU of a map that claims the whole shape
     t = time.perf_counter()
     for method, (face, bary, vertex) in maps.items():
         e = dense_error(face, bary, whole, truth, poses.symmetry, fmm=fmm)
@@ -308,9 +311,38 @@ def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: flo
     return row
 
 
+def add_baseline(path: str, data: str) -> None:
+    """Add ``iou_whole_shape`` (the IoU of a map claiming every vertex of the whole: the true
+    region's share of its vertices) to a results file made without it, from the same seeded cuts."""
+    import json
+
+    res = json.loads(Path(path).read_text())
+    tosca = datasets.TOSCA(Path(data) / "tosca")
+    classes = {}
+    for row in res["pairs"]:
+        cls = row["pair"].split("-")[0]
+        classes.setdefault(cls.rstrip("0123456789"), []).append(row)
+    for cls, rows in classes.items():
+        poses = ClassPoses(tosca, cls, res["run"]["vertices"])
+        for row in rows:
+            k = int(row["pair"].split("-")[1].split("->")[0].removeprefix(row["kind"]))
+            a, b = poses.poses[k % len(poses.poses)], poses.poses[(k + 1) % len(poses.poses)]
+            p = cut(poses.mesh(a), row["keep"], kind=row["kind"], seed=k,
+                    **({"count": res["run"]["holes_count"]} if row["kind"] == "holes" else {}))
+            if p.params["kept"] != row["kept"]:
+                raise RuntimeError(f"{row['pair']}: the cut is not the one measured")
+            row["iou_whole_shape"] = float(grow(poses.mesh(b), p.vertex_map).mean())
+    for kind, summary in res["summary"].items():
+        summary["iou_whole_shape"] = float(np.mean([r["iou_whole_shape"] for r in res["pairs"] if r["kind"] == kind]))
+        print(f"{kind}: IoU of claiming the whole shape {summary['iou_whole_shape']:.3f}")
+    Path(path).write_text(json.dumps(res, indent=1))
+
+
 def summarise(title: str, rows: list[dict]) -> dict:
     """Pool the points of the pairs per method (errors x100), print the table and return it."""
     out = {"pairs": len(rows)}
+    if rows:
+        out["iou_whole_shape"] = float(np.mean([r["iou_whole_shape"] for r in rows]))
     print(f"\n{title}: {len(rows)} pairs; error x100 / sqrt(area of the whole) on the part's vertices "
           "(best of direct and mirrored; direct only)")
     print(f"  {'':<14}{'mean':>7}{'median':>8}{'mean d':>8}{'med d':>7}{'gross':>9}{'IoU':>7}{'s/pair':>8}")
@@ -329,6 +361,8 @@ def summarise(title: str, rows: list[dict]) -> dict:
         out[method] = s
         print(f"  {method:<14}{s['mean']:>7.2f}{s['median']:>8.2f}{s['mean_direct']:>8.2f}"
               f"{s['median_direct']:>7.2f}{s['gross']:>5}/{len(have):<3}{s['iou']:>7.2f}{s['seconds_per_pair']:>8.1f}")
+    if rows:
+        print(f"  (a map claiming the whole shape: IoU {out['iou_whole_shape']:.2f})")
     d = [r["diagnostics"] for r in rows if "diagnostics" in r]
     if d:
         n_cut = np.array([x["samples_by_cut"] for x in d])
@@ -397,7 +431,12 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help=f"{','.join(QUICK['classes'])}, {QUICK['per_class']} part per class and kind")
     ap.add_argument("--json", default=str(HERE / "results" / "partial.json"))
+    ap.add_argument("--add-baseline", action="store_true",
+                    help="add the IoU of claiming the whole shape to the --json file made without it "
+                         "(recomputing its cuts; nothing is matched)")
     args = ap.parse_args(argv)
+    if args.add_baseline:
+        return add_baseline(args.json, args.data)
     tosca = datasets.TOSCA(Path(args.data) / "tosca")
     classes = (QUICK["classes"] if args.quick else
                tosca.classes if args.classes is None else [c for c in args.classes.split(",") if c])
