@@ -104,9 +104,10 @@ def test_heat_distance_in_length_units_is_the_geodesic_distance_below_the_diffus
     np.testing.assert_allclose(raw.from_sources([c])[0] * np.sqrt(32 * np.pi) * raw.t, d, rtol=1e-9)
 
 
-@pytest.mark.parametrize("units, power", [("raw", -1), ("length", 1)])
+@pytest.mark.parametrize("units, power", [("raw", -1), ("length", 1), ("area", 0)])
 def test_heat_distance_scales_with_the_shape(units, power):
-    # t = tau * area: scaling a shape by s scales d_t by 1/s; in length units by s
+    # t = tau * area: scaling a shape by s scales d_t by 1/s; in length units by s; in area
+    # units (the shape at unit area) not at all
     m = icosphere(2)
     d1 = HeatDiffusionSolver(m, units=units).pairwise()
     d3 = HeatDiffusionSolver(Mesh(3.0 * m.vertices, m.faces), units=units).pairwise()
@@ -294,6 +295,11 @@ def test_heat_distance_at_another_time_from_the_same_eigenpairs():
     ref = HeatDiffusionSolver(m, tau=0.01, units="length").pairwise()
     assert np.abs(length.at_tau(0.01).pairwise() - ref).max() < 1e-6 * ref.max()
     assert base._basis is None and length._basis is None   # no second (n, K) array kept
+    area = HeatDiffusionSolver(m, tau=0.005, units="area")
+    np.testing.assert_allclose(area.pairwise(), np.sqrt(area.area) * HeatDiffusionSolver(m, tau=0.005).pairwise(),
+                               rtol=1e-9)
+    ref = HeatDiffusionSolver(m, tau=0.01, units="area").pairwise()
+    assert np.abs(area.at_tau(0.01).pairwise() - ref).max() < 1e-6 * ref.max()
     with pytest.raises(ValueError, match="tau must be positive"):
         base.at_tau(0.0)
 

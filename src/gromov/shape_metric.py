@@ -97,6 +97,7 @@ class ShapeMetric:
         self._curvature: np.ndarray | None = None
         self._symmetry: dict = {}
         self._ranking: dict = {}
+        self._spectrum: dict = {}   # Shape-DNA of the working mesh, per length (gromov.spectrum)
         self._correspondence: ShapeMetric | None = None
 
     @property

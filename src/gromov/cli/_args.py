@@ -132,11 +132,12 @@ def _add_heat_args(p: argparse.ArgumentParser, units_default: str | None = None)
 
     p.add_argument("--tau", type=float, default=None,
                    help="heat-kernel diffusion time relative to the area (default 0.01 with "
-                        "--units normalized, 0.005 with raw or length)")
+                        "--units normalized, 0.005 with raw, length or area)")
     p.add_argument("--units", choices=HEAT_UNITS, default=None,
                    help="heat-kernel diffusion distance between normalised heat distributions "
-                        "(normalized), in units of 1/length (raw) or scaled to the geodesic "
-                        "distance below the diffusion radius (length); default "
+                        "(normalized), in units of 1/length (raw), scaled to the geodesic "
+                        "distance below the diffusion radius (length) or to unit area (area: "
+                        "blind to size); default "
                         + (units_default or DEFAULT_UNITS))
     p.add_argument("--fill-holes", type=float, default=None, metavar="F",
                    help="diffusion: close boundary loops shorter than F * sqrt(area of their "

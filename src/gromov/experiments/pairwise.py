@@ -27,7 +27,7 @@ from ..gh import _match, _upgrade_options, check_rank_residual, match_options_fo
 from ..search import SearchOptions, search_subsets
 from ..shape_metric import ShapeMetric
 
-__all__ = ["PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
+__all__ = ["RANK_BY", "PairwiseGH", "available_cpus", "gh_matrix", "match_pairs", "prepare"]
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +36,8 @@ _OPTIONS: dict = {}
 _KEEP: frozenset = frozenset()
 _MATRIX = False                   # gh_matrix: distances with orientation="ignore"
 _RECORD = None                    # gh_matrix with a store: records each pair as it finishes
+#: What recognition can rank pairs by (:meth:`PairwiseGH.ranked`).
+RANK_BY = ("trimmed", "gh", "combined")
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,6 +65,31 @@ class PairwiseGH:
     skipped: int = 0
     """Pairs not matched (``gh_matrix(k=...)``: they could not be among the k nearest); their
     entries are NaN."""
+    spectral: np.ndarray | None = None
+    """Distances between the shapes' spectral signatures (:func:`gromov.spectrum.spectrum`,
+    Shape-DNA of the working meshes); None with a Dask client."""
+
+    @property
+    def combined(self) -> np.ndarray | None:
+        """The combined ranking :math:`S^w\, G^{1-w}` of ``spectral`` and ``trimmed``
+        (:func:`gromov.spectrum.combined`, w = :data:`~gromov.spectrum.SPECTRUM_WEIGHT`);
+        None without ``spectral``."""
+        if self.spectral is None or self.trimmed is None:
+            return None
+        from ..spectrum import combined
+
+        return combined(self.spectral, self.trimmed)
+
+    def ranked(self, rank_by: str = "trimmed") -> np.ndarray:
+        """The matrix recognition ranks by: ``"trimmed"``, ``"gh"`` (``relative``) or
+        ``"combined"``."""
+        if rank_by not in RANK_BY:
+            raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
+        out = {"trimmed": self.trimmed, "gh": self.relative, "combined": self.combined}[rank_by]
+        if out is None:
+            raise ValueError(f"rank_by={rank_by!r}: this matrix has no {rank_by} values (no spectral "
+                             "signatures: not computed with a Dask client)")
+        return out
 
 
 def _pair(ij):
@@ -159,7 +186,7 @@ def _one_thread_per_worker():
 def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolution: int | None = 3000,
             metric_options: dict | None = None, progress: bool = False,
             subsets=tuple(search_subsets()), rank_tau_scale: float | None = None,
-            jobs: int = 1) -> list[ShapeMetric]:
+            jobs: int = 1, spectral: bool = False) -> list[ShapeMetric]:
     """Each shape's working mesh, dense metric, diameter, descriptors and samples, once.
 
     ``shapes`` are meshes, point clouds, paths or :class:`ShapeMetric` objects (whose metric must be
@@ -168,7 +195,8 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
     ``rank_tau_scale``: also the heat distance recognition measures with
     (:meth:`ShapeMetric.ranking_surface <gromov.shape_metric.ShapeMetric.ranking_surface>`).
     ``jobs``: with the diffusion metric, shapes are prepared in that many forked worker
-    processes (:data:`PARALLEL_PREPARE`), with the same values as in this one.
+    processes (:data:`PARALLEL_PREPARE`), with the same values as in this one. ``spectral``:
+    also each shape's spectral signature (:func:`gromov.spectrum.spectrum`).
     """
     from tqdm import tqdm
 
@@ -180,7 +208,7 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
             raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
         out.append(s)
     _warn_if_too_big(out)
-    work = (n_samples, seed, tuple(subsets), rank_tau_scale)
+    work = (n_samples, seed, tuple(subsets), rank_tau_scale, bool(spectral))
     todo = [i for i, s in enumerate(out) if s.solver._pairwise is None]
     done = set()
     with tqdm(total=len(out), desc=f"{metric} metrics", disable=not progress, leave=False) as bar:
@@ -212,18 +240,22 @@ PARALLEL_PREPARE = ("diffusion",)
 _PREPARE: list[ShapeMetric] = []   # set before forking the preparing workers
 
 
-def _prepare_one(s: ShapeMetric, n_samples, seed, subsets, rank_tau_scale) -> None:
+def _prepare_one(s: ShapeMetric, n_samples, seed, subsets, rank_tau_scale, spectral=False) -> None:
     """What :func:`prepare` computes of one shape (each part once: cached on ``s``)."""
     s.distances, s.diameter, s.descriptors, s.samples(n_samples, seed)  # per shape, once
     for k in subsets:
         s.subset(k)
     if rank_tau_scale is not None:
         s.ranking_surface(rank_tau_scale)
+    if spectral:
+        from ..spectrum import spectrum
+
+        spectrum(s)
 
 
 #: The attributes of a :class:`ShapeMetric` that :func:`_prepare_one` fills, carried back from
 #: a worker (the solver holds the distances and the eigenpairs).
-_PREPARED = ("solver", "_diameter", "_finite", "_descriptors", "_samples", "_ranking")
+_PREPARED = ("solver", "_diameter", "_finite", "_descriptors", "_samples", "_ranking", "_spectrum")
 
 
 def _prepared_state(k: int, work) -> bytes:
@@ -343,7 +375,7 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
               keep=(), known: dict | None = None, rank_tau_scale: float | None = RANK_TAU_SCALE,
               rank_residual: str = RANK_RESIDUAL, store=None, client=None, k: int | None = None,
-              **match_options) -> PairwiseGH:
+              candidates: int | None = None, spectral: bool = False, **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -400,6 +432,15 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         the profile gap, and the triangle estimates from the pairs matched, given in ``known``
         or recorded in ``store``; recall 1.0 on the validation sets: docs/guide/retrieval.md).
         Not with ``client``.
+    candidates : int, optional
+        A two-stage search: only the pairs in which one shape is among the other's
+        ``candidates`` nearest by spectral distance (``spectral``) are matched, all of them; the
+        others are NaN and counted in ``skipped``. With ``k`` too, the k nearest are read
+        from those (``k`` then prunes nothing). Not with ``client``.
+    spectral : bool, default False
+        Also the distances between the shapes' spectral signatures (``PairwiseGH.spectral``,
+        :func:`gromov.spectrum.spectral_distances`: one sparse eigendecomposition per shape),
+        which the ``combined`` ranking needs; always with ``candidates``. Not with ``client``.
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``, ``search``...).
 
@@ -424,6 +465,15 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     check_rank_residual(rank_residual)
     if k is not None and client is not None:
         raise ValueError("k (nearest neighbours only) is not available with a Dask client")
+    if candidates is not None:
+        if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
+            raise ValueError(f"candidates must be an integer >= 1, got {candidates!r}")
+        if k is not None and candidates < k:
+            raise ValueError(f"candidates ({candidates}) must be at least k ({k})")
+        spectral = True
+    if spectral and client is not None:
+        raise ValueError("spectral signatures (candidates, the combined ranking) are not available with a "
+                         "Dask client")
     match_options = _upgrade_options(match_options, "gh_matrix")
     keep = frozenset((int(i), int(j)) for i, j in keep)
     bad = [ij for ij in keep if not 0 <= ij[0] < ij[1] < n]
@@ -440,7 +490,7 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
                    rank_residual=rank_residual, **match_options)
     per_shape = {"n_samples": n_samples, "seed": seed, "resolution": resolution, "metric_options": metric_options,
                  "subsets": _subsets(match_options), "rank_tau_scale": rank_tau_scale}
-    fill = 0.0 if k is None else np.nan   # with k: NaN where a pair was not matched
+    fill = 0.0 if k is None and candidates is None else np.nan   # NaN where a pair was not matched
     dist = np.full((n, n), fill)
     rel = np.full((n, n), fill)
     trim = np.full((n, n), fill)
@@ -463,13 +513,18 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
 
         store = as_store(store)
     held = None
+    S = None
     try:
         if client is None:
             if store is not None:
                 shapes = store.shapes(shapes, metric, resolution=resolution, metric_options=metric_options,
                                       rank_tau_scale=rank_tau_scale, progress=progress)
-            prepared = prepare(shapes, metric, progress=progress, jobs=jobs, **per_shape)
+            prepared = prepare(shapes, metric, progress=progress, jobs=jobs, spectral=spectral, **per_shape)
             keys = None if store is None else [store.key_of(s) for s in prepared]
+            if spectral:
+                from ..spectrum import spectral_distances
+
+                S = spectral_distances(prepared)
         else:
             held, keys = _dask_prepare(client, shapes, metric, store, per_shape, progress)
         t1 = time.perf_counter()
@@ -487,7 +542,13 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
             global _RECORD
             _RECORD = record
             try:
-                if k is None:
+                if candidates is not None:   # the first stage's candidates, all matched
+                    first = _candidate_pairs(S, candidates) | keep
+                    skipped = sum(1 for ij in pairs if ij not in first)
+                    pairs = [ij for ij in pairs if ij in first]
+                    runs = _run(prepared, pairs, keep, jobs, progress, f"{desc} (candidates {candidates})",
+                                options, matrix=True)
+                elif k is None:
                     runs = _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=True)
                 else:   # only the pairs that can be among some shape's k nearest
                     got, skipped = _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress,
@@ -504,7 +565,19 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         if held is not None:
             client.cancel(held)   # the workers drop the shapes
     return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim,
-                      rank_tau_scale, rank_residual, skipped)
+                      rank_tau_scale, rank_residual, skipped, S)
+
+
+def _candidate_pairs(S: np.ndarray, c: int) -> set:
+    """The unordered pairs ``(i, j)``, ``i < j``, in which one shape is among the other's ``c``
+    nearest by ``S`` (ties by index)."""
+    n = len(S)
+    out = set()
+    for i in range(n):
+        others = np.r_[0:i, i + 1:n]
+        for j in others[np.argsort(S[i, others], kind="stable")[:c]].tolist():
+            out.add((min(i, j), max(i, j)))
+    return out
 
 
 def _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress, desc, options, match_options):

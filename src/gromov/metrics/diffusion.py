@@ -94,7 +94,7 @@ POINT_CLOUD_NEIGHBORS = 20
 
 #: Default heat-kernel diffusion time relative to the area, per ``units`` (see
 #: :class:`HeatDiffusionSolver`).
-DEFAULT_TAU = {"normalized": 0.01, "raw": 0.005, "length": 0.005}
+DEFAULT_TAU = {"normalized": 0.01, "raw": 0.005, "length": 0.005, "area": 0.005}
 #: Default ``units`` of :class:`HeatDiffusionSolver`, and of recognition (GH distance
 #: matrices: :func:`gromov.experiments.pairwise.gh_matrix`, ``gromov pairwise``,
 #: ``gromov reproduce``'s EERs).
@@ -527,6 +527,16 @@ class GraphDiffusionSolver(_SpectralDiffusion):
                 f"m={self.m}, density_normalize={self.density_normalize})")
 
 
+def _unit_scale(units: str, t: float, area: float) -> float:
+    """The factor that puts the raw heat distance :math:`d_t` in ``units``: the length scale
+    :math:`\sqrt{32\pi}\, t` ("length"), :math:`\sqrt{A}` ("area": dimensionless), else 1."""
+    if units == "length":
+        return float(np.sqrt(32.0 * np.pi) * t)
+    if units == "area":
+        return float(np.sqrt(area))
+    return 1.0
+
+
 class HeatDiffusionSolver(_SpectralDiffusion):
     r"""Resolution-independent diffusion distance from the Laplace-Beltrami heat kernel.
 
@@ -548,7 +558,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         Point clouds only: the neighbours of each point in the robust Laplacian.
     rtol : float, default 1e-6
         See :class:`GraphDiffusionSolver`.
-    units : {"normalized", "raw", "length"}, default DEFAULT_UNITS
+    units : {"normalized", "raw", "length", "area"}, default DEFAULT_UNITS
         ``"normalized"``: :math:`\bar d_t`, the distance between the *normalised* heat
         distributions of the two points (module notes): dimensionless, at most 2, unchanged by
         scaling the shape, and blind to the return probabilities that a topology change
@@ -566,6 +576,11 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         way it does with geodesic distances. (A per-shape constant: it changes distances
         between shapes of different areas, never the distances within one shape relative to
         each other.)
+        ``"area"``: :math:`\sqrt{A}\, d_t`, A the shape's area: the raw distance of the shape
+        scaled to unit area (the heat kernel of :math:`sX` at time :math:`s^2 t` is
+        :math:`k_t / s^2`), so dimensionless and unchanged by scaling the shape, like
+        ``"normalized"``, while keeping the return probabilities that ``"normalized"`` divides
+        out. For recognition among shapes whose size says nothing of their class.
     """
 
     def __init__(self, shape, *, tau: float | None = None, laplacian: str = "cotan", rtol: float = 1e-6,
@@ -585,8 +600,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         self.neighbors = int(neighbors)
         self.t = self.tau * self.area
         self._basis: tuple[np.ndarray, np.ndarray] | None = None
-        # the factor that puts d_t in units of length (see ``units``)
-        self.unit_scale = float(np.sqrt(32.0 * np.pi) * self.t) if units == "length" else 1.0
+        self.unit_scale = _unit_scale(units, self.t, self.area)
 
     def _dense_embedding(self):
         lam, phi = _dense_generalized(self.stiffness, self.mass)
@@ -689,7 +703,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
         out.tau, out.units, out.laplacian, out.neighbors = float(tau), self.units, self.laplacian, self.neighbors
         out.stiffness, out.mass, out.area = self.stiffness, self.mass, self.area
         out.t = out.tau * out.area
-        out.unit_scale = float(np.sqrt(32.0 * np.pi) * out.t) if out.units == "length" else 1.0
+        out.unit_scale = _unit_scale(out.units, out.t, out.area)
         out.eigenvalues = lam
         if self.truncation_bound == 0.0:
             out.truncation_bound = 0.0
