@@ -71,7 +71,7 @@ import numpy as np
 from _common import HERE, add_data_argument, write_results
 
 COLLECTIONS = ("tosca", "watertight")
-METHODS = ("shapedna", "hks", "gromov")
+METHODS = ("shapedna", "hks", "gromov", "combined")
 #: Shape-DNA's length (Reuter et al. 2006 compare the first 50 or so).
 DNA_K = 50
 #: Eigenpairs of the pooled HKS.
@@ -298,6 +298,31 @@ def gromov_matrix(files, args) -> dict:
             "seconds_match": g.seconds_match}
 
 
+def combined_matrix(files, args) -> dict:
+    """:func:`gromov.experiments.gh_matrix` as ``gromov pairwise FILES --units area --samples
+    S --rank-by combined [-k 10 --candidates C]`` runs it: the heat distances of each shape at
+    unit area, ranked by the spectral distance and the trimmed distortion together
+    (:func:`gromov.spectrum.combined`); with ``--candidates``, only each shape's C nearest by
+    the spectral distance are matched. Unmatched pairs are ranked after the matched ones, by
+    their spectral distance."""
+    from gromov.errors import GromovWarning
+    from gromov.experiments.pairwise import gh_matrix
+
+    t = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GromovWarning)
+        g = gh_matrix([str(f) for f in files], "diffusion", n_samples=args.combined_samples,
+                      resolution=args.resolution, metric_options={**GROMOV_METRIC, "units": "area"},
+                      seed=args.seed, jobs=args.jobs, spectral=True, candidates=args.candidates)
+    wall = time.perf_counter() - t
+    D = g.combined.copy()
+    S = g.spectral
+    miss = np.isnan(D)
+    D[miss] = np.nanmax(D) + 1.0 + S[miss] / (S.max() + 1e-300)
+    return {"combined": D, "complete": not miss.any(), "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
+            "seconds": wall, "seconds_prepare": g.seconds_prepare, "seconds_match": g.seconds_match}
+
+
 # ----------------------------------------------------------------------------- main
 def gromov_source() -> dict:
     """Where the gromov that ran comes from: its folder and, in a git checkout, the commit and
@@ -333,6 +358,11 @@ def main(argv=None) -> None:
     ap.add_argument("--resolution", type=int, default=3000)
     ap.add_argument("--cache", default=None, metavar="DIR",
                     help="write the descriptors and gromov matrices there (for the defaults study)")
+    ap.add_argument("--combined-per-class", type=int, default=None, metavar="N",
+                    help="method combined: at most N shapes of each class (default --per-class; 0: all)")
+    ap.add_argument("--combined-samples", type=int, default=50, help="method combined: samples per shape")
+    ap.add_argument("--candidates", type=int, default=None, metavar="C",
+                    help="method combined: match only each shape's C nearest by spectral distance")
     ap.add_argument("--json", default=str(HERE / "results" / "recognition.json"))
     args = ap.parse_args(argv)
     colls = [c.strip() for c in args.collections.split(",") if c.strip()]
@@ -402,6 +432,23 @@ def main(argv=None) -> None:
                 out["rows"][row] = {**scores(g[key], labels[sub]), **timing}
             print(f"  gromov     NN {out['rows']['gromov']['nn']:.3f}  EER {out['rows']['gromov']['eer']:.3f}  "
                   f"{g['seconds']:.1f} s", flush=True)
+        if "combined" in methods:
+            per = args.per_class if args.combined_per_class is None else args.combined_per_class
+            csub = class_subset(labels, per, args.seed)
+            mc = len(csub)
+            g = combined_matrix([files[i] for i in csub], args)
+            row = (f"gromov --units area --samples {args.combined_samples} --rank-by combined"
+                   + (f" --candidates {args.candidates}" if args.candidates else ""))
+            sc = scores(g["combined"], labels[csub])
+            if not g["complete"]:
+                sc["eer"] = None   # not every pair was matched: no EER
+            out["rows"][row] = {**sc, "seconds": g["seconds"], "seconds_prepare": g["seconds_prepare"],
+                                "seconds_match": g["seconds_match"], "jobs": args.jobs, "pairs_matched": g["matched"],
+                                "files": [files[i].name for i in csub],
+                                "seconds_per_shape": g["seconds_prepare"] * args.jobs / mc,
+                                "seconds_per_pair": g["seconds_match"] * args.jobs / max(g["matched"], 1)}
+            print(f"  combined   NN {sc['nn']:.3f}  FT {sc['ft']:.3f}  EER {sc['eer']}  {g['seconds']:.1f} s "
+                  f"({g['matched']} pairs)", flush=True)
         res["collections"][name] = out
         write_results(args.json, {**res, "complete": False})
     res["ratios"] = ratios(res)
@@ -438,7 +485,7 @@ def print_table(res: dict) -> None:
         for meth, r in c["rows"].items():
             pair = f"{r['seconds_per_pair']:8.3f}" if "seconds_per_pair" in r else f"{'':>8}"
             print(f"{name:<11}{meth:<28}{r['shapes']:>7}{r['nn']:>7.3f}{r['ft']:>7.3f}{r['st']:>7.3f}"
-                  f"{r['eer']:>7.3f}{r['seconds']:>9.1f}{r['seconds_per_shape']:>9.2f}{pair}")
+                  f"{r['eer'] if r['eer'] is not None else float('nan'):>7.3f}{r['seconds']:>9.1f}{r['seconds_per_shape']:>9.2f}{pair}")
     for key, r in res.get("ratios", {}).items():
         print(f"{key}: {r['time']:.1f}x the single-process time; NN {r['nn_difference']:+.3f}, "
               f"FT {r['ft_difference']:+.3f}, EER {r['eer_difference']:+.3f}")

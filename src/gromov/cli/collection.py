@@ -164,6 +164,11 @@ def _search_parser(sub) -> None:
     q.set_defaults(func=cmd_search)
 
 
+#: How the text output names what pairs are ranked by, and the .csv's corner cell.
+_RANKED_WORDS = {"trimmed": "trimmed distortion", "gh": "GH distance", "combined": "combined distance"}
+_MATRIX_NAME = {"trimmed": "relative_trimmed_distance", "gh": "relative_distance", "combined": "combined_distance"}
+
+
 def cmd_pairwise(args) -> int:
     n = len(args.files)
     labels, k_local, dask = _pairwise_arguments(args, n)
@@ -179,7 +184,7 @@ def cmd_pairwise(args) -> int:
     if unusable:
         keep = [i for i, f in enumerate(args.files) if f not in unusable]
         labels = None if labels is None else [labels[i] for i in keep]
-    D = r.trimmed if args.rank_by == "trimmed" else r.relative
+    D = r.ranked(args.rank_by)
     result, nearest = _pairwise_result(args, r, files, unusable, labels, options, store, seconds, D)
     if labels is not None:
         _add_recognition(result, args, r, D, nearest, k_local)
@@ -219,6 +224,10 @@ def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
             raise _UserError(f"output folder {Path(args.out).parent} does not exist")
     if args.k is not None and args.mds:
         raise _UserError("--mds needs every pair; -k matches only each shape's nearest")
+    if args.candidates is not None and args.mds:
+        raise _UserError("--mds needs every pair; --candidates matches only each shape's candidates")
+    if args.candidates is not None and args.k is not None and args.candidates < args.k:
+        raise _UserError(f"--candidates ({args.candidates}) must be at least -k ({args.k})")
     if args.mds:
         _check_png(args.mds, "--mds")
         if n < 3:
@@ -230,6 +239,10 @@ def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
     dask = args.dask is not None or args.scheduler is not None
     if dask and args.k is not None:
         raise _UserError(f"-k is not available with {'--dask' if args.dask is not None else '--scheduler'}: "
+                         "use --jobs")
+    if dask and (args.candidates is not None or args.rank_by == "combined"):
+        what = "--candidates" if args.candidates is not None else "--rank-by combined"
+        raise _UserError(f"{what} is not available with {'--dask' if args.dask is not None else '--scheduler'}: "
                          "use --jobs")
     if dask:
         import importlib.util
@@ -281,8 +294,11 @@ def _pairwise_result(args, r, files: list, unusable: dict, labels, options: dict
               "relative_trimmed_distance": r.trimmed.tolist(),
               "nearest": [names[j] for j in nearest], "labels": labels,
               "seconds": seconds}
-    if args.k is not None:
-        result.update(k=args.k, pairs_matched=n * (n - 1) // 2 - r.skipped, pairs_skipped=r.skipped)
+    if r.spectral is not None:
+        result.update(spectral_distance=r.spectral.tolist(), combined_distance=r.combined.tolist())
+    if args.k is not None or args.candidates is not None:
+        result.update(k=args.k, candidates=args.candidates, pairs_matched=n * (n - 1) // 2 - r.skipped,
+                      pairs_skipped=r.skipped)
     if store is not None:
         result["store"] = {"path": args.store, "shapes_read": store.reused, "pairs_read": store.pairs_reused}
     return result, nearest
@@ -300,9 +316,9 @@ def _add_recognition(result: dict, args, r, D: np.ndarray, nearest: np.ndarray, 
     same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
     result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
                   local_scaling_k=None, errors_at_eer_local=None)
-    if same.any() and not same.all() and args.k is None:   # else all one class, or every shape its
-        # own, or not every pair matched: no EER
-        curves = {k: roc(m, lab) for k, m in (("trimmed", r.trimmed), ("gh", r.relative))}
+    if same.any() and not same.all() and args.k is None and args.candidates is None:   # else all one
+        # class, or every shape its own, or not every pair matched: no EER
+        curves = {k: roc(r.ranked(k), lab) for k in ("trimmed", "gh", args.rank_by)}
         local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
         result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
                       eer_trimmed=curves["trimmed"].eer,
@@ -318,11 +334,12 @@ def _write_pairwise(args, r, result: dict, D: np.ndarray) -> None:
     if args.out:
         out = Path(args.out)
         if out.suffix == ".csv":   # the matrix the results rank by, named in the corner cell
-            _write_csv(out, names, D, "relative_trimmed_distance" if args.rank_by == "trimmed"
-                       else "relative_distance")
+            _write_csv(out, names, D, _MATRIX_NAME[args.rank_by])
         else:
             nan = float("nan")
-            atomic_savez_compressed(out, files=np.array(names), distance=r.distance,
+            extra = {} if r.spectral is None else {"spectral_distance": r.spectral,
+                                                   "combined_distance": r.combined}
+            atomic_savez_compressed(out, files=np.array(names), distance=r.distance, **extra,
                                     relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
                                     labels=np.array(labels if labels is not None else [], dtype=str),
                                     ranked_by=args.rank_by, nearest=np.array(result["nearest"]),
@@ -336,7 +353,7 @@ def _write_pairwise(args, r, result: dict, D: np.ndarray) -> None:
     if args.mds:
         from ..experiments.recognition import mds_map, plot_mds
 
-        what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
+        what = _RANKED_WORDS[args.rank_by]
         plot_mds(mds_map(D, 2, seed=args.seed), labels if labels is not None else ["shapes"] * n,
                  args.mds, names=_short_names(names),
                  title=f"MDS of {n} shapes, {args.metric}, {what}")
@@ -347,9 +364,14 @@ def _print_pairwise(args, r, result: dict, nearest: np.ndarray, store) -> None:
     the files written."""
     names, labels, unusable = result["files"], result["labels"], result["skipped"]
     n = len(names)
-    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
-    pairs = (f"{n * (n - 1) // 2} pairs" if args.k is None else
-             f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)")
+    what = _RANKED_WORDS[args.rank_by]
+    if args.candidates is not None:
+        pairs = (f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's "
+                 f"{args.candidates} candidates by spectral distance)")
+    elif args.k is not None:
+        pairs = f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)"
+    else:
+        pairs = f"{n * (n - 1) // 2} pairs"
     left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
     print(f"{n} shapes{left_out}, {pairs}, {args.metric} metric, {args.samples} samples per "
           f"shape, {result['seconds']:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")
@@ -366,13 +388,19 @@ def _print_pairwise(args, r, result: dict, nearest: np.ndarray, store) -> None:
               f"{r.trimmed[i, j]:.4%}){mark}")
     if labels is not None:
         if result["eer"] is None:
-            why = ("needs every pair; -k matched only each shape's nearest" if args.k is not None else
+            why = ("needs every pair; --candidates matched only each shape's candidates"
+                   if args.candidates is not None else
+                   "needs every pair; -k matched only each shape's nearest" if args.k is not None else
                    "needs two shapes of a class and two classes")
             print(f"  labels: no equal error rate ({why}); "
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
         else:
-            other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
-            print(f"  equal error rate {result['eer']:.2%} (ranked by the other: {other:.2%}; "
+            if args.rank_by == "combined":
+                others = f"trimmed distortion: {result['eer_trimmed']:.2%}; GH distance: {result['eer_gh']:.2%}"
+            else:
+                other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
+                others = f"ranked by the other: {other:.2%}"
+            print(f"  equal error rate {result['eer']:.2%} ({others}; "
                   f"locally scaled, k = {result['local_scaling_k']}: {result['eer_local']:.2%}), "
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
             from ..experiments.report import errors_text
@@ -451,7 +479,8 @@ def _pairwise_matrix(args, files: list, loaded: dict, store, options: dict, dask
         return gh_matrix(shapes, args.metric, n_samples=args.samples, resolution=args.resolution,
                          metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
                          progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
-                         rank_residual=args.rank_residual, store=store, client=client, k=args.k)
+                         rank_residual=args.rank_residual, store=store, client=client, k=args.k,
+                         candidates=args.candidates, spectral=args.rank_by == "combined")
 
 
 def _failing_shapes(args, files: list, loaded: dict, options: dict) -> dict:
@@ -510,9 +539,10 @@ def _pairwise_parser(sub) -> None:
                         "nearest-neighbour accuracy")
     q.add_argument("--labels-from-names", action="store_true",
                    help="classes from the file names without trailing digits (cat0.off -> cat)")
-    q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
+    q.add_argument("--rank-by", choices=("trimmed", "gh", "combined"), default="trimmed",
                    help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
-                        "correspondence (default, as gromov reproduce) or by the GH estimate")
+                        "correspondence (default, as gromov reproduce), by the GH estimate, or by "
+                        "the trimmed distortion and the spectral distance (Shape-DNA) together")
     _add_rank_args(q)
     q.add_argument("--out", default=None, metavar="FILE",
                    help=".npz with all matrices, or .csv with the matrix the results rank by "
@@ -523,6 +553,11 @@ def _pairwise_parser(sub) -> None:
                         "of gromov search: recall 1.0 on the validation sets, not guaranteed); the "
                         "others are empty (NaN) in the matrices and not counted; no equal error rate "
                         "or MDS map (they need every pair); refused with --dask or --scheduler")
+    q.add_argument("--candidates", type=_positive_int, default=None, metavar="C",
+                   help="a two-stage search: match only the pairs in which one shape is among the "
+                        "other's C nearest by spectral distance (Shape-DNA, one eigendecomposition "
+                        "per shape); the others are empty (NaN); no equal error rate or MDS map; "
+                        "refused with --dask or --scheduler")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--store", default=None, metavar="DIR",
                    help="shape store (gromov index): read each shape's metric from it or add it, "

@@ -71,7 +71,7 @@ class PairwiseGH:
 
     @property
     def combined(self) -> np.ndarray | None:
-        """The combined ranking :math:`S^w\, G^{1-w}` of ``spectral`` and ``trimmed``
+        r"""The combined ranking :math:`S^w\, G^{1-w}` of ``spectral`` and ``trimmed``
         (:func:`gromov.spectrum.combined`, w = :data:`~gromov.spectrum.SPECTRUM_WEIGHT`);
         None without ``spectral``."""
         if self.spectral is None or self.trimmed is None:

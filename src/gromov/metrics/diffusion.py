@@ -528,7 +528,7 @@ class GraphDiffusionSolver(_SpectralDiffusion):
 
 
 def _unit_scale(units: str, t: float, area: float) -> float:
-    """The factor that puts the raw heat distance :math:`d_t` in ``units``: the length scale
+    r"""The factor that puts the raw heat distance :math:`d_t` in ``units``: the length scale
     :math:`\sqrt{32\pi}\, t` ("length"), :math:`\sqrt{A}` ("area": dimensionless), else 1."""
     if units == "length":
         return float(np.sqrt(32.0 * np.pi) * t)

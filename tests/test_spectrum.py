@@ -1,0 +1,107 @@
+"""The spectral signature (Shape-DNA), the combined ranking and the two-stage matrix."""
+
+import json
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov import ShapeMetric
+from gromov.cli import main
+from gromov.experiments.pairwise import gh_matrix
+from gromov.mesh import Mesh
+from gromov.shapes import grid, icosphere, rolled_grid, torus
+from gromov.spectrum import combined, shape_dna, spectral_distances, spectrum
+
+
+def test_the_sphere_spectrum_over_weyl():
+    # unit sphere: lambda = l (l + 1) with multiplicity 2l + 1, area 4 pi, so DNA_i = lambda_i / i
+    s = ShapeMetric(icosphere(4), "diffusion", resolution=None)
+    dna = spectrum(s, 8)
+    exact = np.array([2, 2, 2, 6, 6, 6, 6, 6]) / np.arange(1, 9)
+    np.testing.assert_allclose(dna, exact, rtol=0.01)
+
+
+def test_the_signature_ignores_scale_rotation_and_vertex_order():
+    m = torus(40, 20)
+    rng = np.random.default_rng(1)
+    perm = rng.permutation(m.n_vertices)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    moved = Mesh(3.0 * m.vertices[perm] @ q.T + 5.0, np.argsort(perm)[m.faces])
+    a = spectrum(ShapeMetric(m, "diffusion", resolution=None))
+    b = spectrum(ShapeMetric(moved, "diffusion", resolution=None))
+    np.testing.assert_allclose(b, a, rtol=1e-6)
+    # an elongated torus is another shape
+    c = spectrum(ShapeMetric(Mesh(m.vertices * [2.0, 1.0, 1.0], m.faces), "diffusion", resolution=None))
+    assert np.linalg.norm(c - a) > 100 * np.linalg.norm(b - a)
+
+
+def test_shape_dna_skips_one_zero_per_component_and_pads():
+    lam = np.array([0.0, 0.0, 4 * np.pi, 8 * np.pi])   # two components, area 1
+    np.testing.assert_allclose(shape_dna(lam, 1.0, 4), [1.0, 1.0, np.nan, np.nan])
+    with pytest.raises(ValueError, match="area must be positive"):
+        shape_dna(lam, 0.0)
+
+
+def test_combined_is_a_weighted_geometric_mean_pair_by_pair():
+    S = np.array([[0.0, 4.0, 1.0], [4.0, 0.0, 9.0], [1.0, 9.0, 0.0]])
+    G = np.array([[0.0, 0.25, np.nan], [0.25, 0.0, 1.0], [np.nan, 1.0, 0.0]])
+    C = combined(S, G, 0.5)
+    np.testing.assert_allclose(C[0, 1], 1.0)
+    np.testing.assert_allclose(C[1, 2], 3.0)
+    assert np.isnan(C[0, 2]) and np.all(np.diag(C) == 0)
+    # units of either factor scale every value alike: the order is kept
+    off = ~np.eye(3, dtype=bool) & ~np.isnan(G)
+    np.testing.assert_allclose(combined(7.0 * S, 0.1 * G, 0.3)[off], 7.0**0.3 * 0.1**0.7 * combined(S, G, 0.3)[off])
+    np.testing.assert_array_equal(combined(S, G, 0.0)[off], G[off])
+    with pytest.raises(ValueError, match="weight"):
+        combined(S, G, 1.5)
+
+
+def _sheets():
+    return [grid(21, 11), rolled_grid(21, 11), grid(31, 11, width=2 * np.pi), torus(30, 12), grid(15, 15)]
+
+
+def test_two_stage_matrix_matches_only_the_candidates_and_agrees_with_the_full_one():
+    shapes = [ShapeMetric(m, "geodesic", resolution=None) for m in _sheets()]
+    opts = dict(n_samples=15, jobs=1)
+    full = gh_matrix(shapes, "geodesic", spectral=True, **opts)
+    assert full.skipped == 0 and np.allclose(full.spectral, full.spectral.T)
+    S = spectral_distances(shapes)
+    np.testing.assert_array_equal(full.spectral, S)
+    n = len(shapes)
+    expect = set()
+    for i in range(n):
+        others = [j for j in np.argsort(S[i], kind="stable") if j != i]
+        expect.add(tuple(sorted((i, int(others[0])))))
+    two = gh_matrix(shapes, "geodesic", candidates=1, **opts)
+    matched = {(i, j) for i in range(n) for j in range(i + 1, n) if not np.isnan(two.trimmed[i, j])}
+    assert matched == expect and two.skipped == n * (n - 1) // 2 - len(expect)
+    for i, j in matched:
+        assert two.trimmed[i, j] == full.trimmed[i, j] and two.relative[i, j] == full.relative[i, j]
+    assert np.isnan(two.combined[[i for i, _ in matched][0], :]).sum() >= 1
+    every = gh_matrix(shapes, "geodesic", candidates=n - 1, **opts)
+    np.testing.assert_array_equal(every.trimmed, full.trimmed)
+    with pytest.raises(ValueError, match="candidates"):
+        gh_matrix(shapes, "geodesic", candidates=0, **opts)
+    with pytest.raises(ValueError, match="at least k"):
+        gh_matrix(shapes, "geodesic", candidates=1, k=2, **opts)
+
+
+def test_pairwise_ranks_by_the_combined_distance(tmp_path, capsys):
+    files = []
+    for i, m in enumerate(_sheets()[:4]):
+        f = tmp_path / f"s{i}.off"
+        gromov.save(m, f)
+        files.append(str(f))
+    base = ["pairwise", *files, "--metric", "geodesic", "--samples", "15", "--jobs", "1"]
+    assert main([*base, "--rank-by", "combined", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    C, S, G = (np.array(res[k]) for k in ("combined_distance", "spectral_distance", "relative_trimmed_distance"))
+    np.testing.assert_allclose(C, combined(S, G))
+    assert res["ranked_by"] == "combined"
+    assert main([*base, "--candidates", "1", "--json"]) == 0
+    two = json.loads(capsys.readouterr().out)
+    assert two["candidates"] == 1 and two["pairs_skipped"] >= 2
+    assert main([*base, "--candidates", "1", "-k", "2"]) == 2
+    assert "must be at least -k" in capsys.readouterr().err
