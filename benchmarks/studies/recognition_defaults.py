@@ -459,6 +459,32 @@ def combine(S: np.ndarray, G: np.ndarray, rule: str) -> np.ndarray:
 
 
 RULES = ("ranksum", "zsum", "geo 0.25", "geo 0.5", "geo 0.75")
+#: The library's rule: a value per pair, needing nothing of the rest of the collection (stored
+#: pairs are reused, one threshold serves every pair), with a signature gromov computes from
+#: its working mesh: S^w G^(1 - w) for these w (w = 0: the GMDS value alone).
+GEO_WEIGHTS = (0.0, 0.15, 0.25, 0.35, 0.5)
+PAIR_LOCAL_SIGNATURES = ("dna_working", "hks_working")
+#: J differences up to this count as ties (one nearest neighbour of 109 changes J by 0.003).
+J_TIE = 0.005
+
+
+def _pair_local(cands: dict, labs: dict, gmds_names: list) -> dict:
+    """The pair-local candidates S^w G^(1 - w) (:data:`GEO_WEIGHTS`) of each working-mesh
+    signature and each of the best GMDS matrices, scored; ``chosen``: the lowest J; ``ties``:
+    those within :data:`J_TIE` of it (not told apart by these sets)."""
+    rows = {}
+    for s in PAIR_LOCAL_SIGNATURES:
+        for g in gmds_names:
+            for w in GEO_WEIGHTS:
+                mats = {c: combine(cands[s][c], cands[g][c], f"geo {w}") for c in COLLECTIONS}
+                rows[f"geo {w:g}({s}, {g})"] = {**score_candidate(mats, labs), "signature": s, "gmds": g, "weight": w}
+    best = min(r["J"] for r in rows.values())
+    ties = [k for k, r in rows.items() if r["J"] <= best + J_TIE]
+    chosen = min(rows, key=lambda k: rows[k]["J"])
+    return {"procedure": f"lowest J among S^w G^(1-w), w in {list(GEO_WEIGHTS)}, S in {list(PAIR_LOCAL_SIGNATURES)}, "
+                         f"G the best 3 GMDS matrices; ties: within {J_TIE} of the lowest J",
+            "candidates": dict(sorted(rows.items(), key=lambda kv: kv[1]["J"])), "ties": ties,
+            "chosen": {"name": chosen, **rows[chosen]}}
 
 
 # ----------------------------------------------------------------------------- scoring
@@ -524,6 +550,7 @@ def main(argv=None) -> None:
                          "collection as a diagnostic, not as candidates")
     ap.add_argument("--cache", default="/tmp/recognition-defaults", metavar="DIR")
     ap.add_argument("--json", default=str(HERE / "recognition_defaults.json"))
+    ap.add_argument("--notes", default=None, help="a note kept in the JSON (run_notes): e.g. where the cache came from")
     args = ap.parse_args(argv)
     configs = [c.strip() for c in args.configs.split(",") if c.strip()]
     if set(configs) - set(CONFIGS):
@@ -538,7 +565,7 @@ def main(argv=None) -> None:
                  "procedure": "lowest J = mean(1 - NN, 1 - FT, EER) on both collections together "
                               "(NN, FT over all queries, each in its own collection; EER with one threshold "
                               "over all within-collection pairs); ties to the cheaper",
-                 "gromov_source": gromov_source(), "load_average_start": os.getloadavg(),
+                 "gromov_source": gromov_source(), "load_average_start": os.getloadavg(), "run_notes": args.notes,
                  "collections": {}}
     labs_all, labs_sub, cheap_all, cheap_sub, cost, subs, gmds = {}, {}, {}, {}, {}, {}, {}
     for name in COLLECTIONS:
@@ -614,6 +641,7 @@ def main(argv=None) -> None:
                 cands[name] = mats
                 combos[name] = {**score_candidate(mats, labs_sub), "kind": "combination", "parts": [s, g, rule]}
     scored.update(combos)
+    pair_local = _pair_local(cands, labs_sub, best_gmds[:3])
     ranking = sorted(scored, key=lambda k: scored[k]["J"])
     best = ranking[0]
     best_combo = by_j("combination")[0] if combos else None
@@ -655,7 +683,7 @@ def main(argv=None) -> None:
         "best_per_shape_full": {"name": min(cheap_full, key=lambda k: cheap_full[k]["J"]),
                                 **cheap_full[min(cheap_full, key=lambda k: cheap_full[k]["J"])]},
         "best_combination": None if best_combo is None else {"name": best_combo, **scored[best_combo]},
-        "two_stage": two,
+        "two_stage": two, "pair_local": pair_local,
         "two_stage_watertight_200": {"pairs": full, "default_seconds_per_pair_one_core": float(per_pair),
                                      "default_seconds_per_shape_one_core": float(per_shape),
                                      "minutes_on_2_cores": {s: {k: (v * per_pair + 200 * per_shape) / 2 / 60
@@ -684,6 +712,10 @@ def print_summary(res, scored, ranking) -> None:
     print("\nper-shape candidates on all shapes (80 + 200):")
     for k in sorted(res["per_shape_full"], key=lambda k: res["per_shape_full"][k]["J"])[:10]:
         print(_line(k, res["per_shape_full"][k]))
+    pl = res["pair_local"]
+    print(f"\npair-local (S^w G^(1-w)); chosen: {pl['chosen']['name']}")
+    for k in list(pl["candidates"])[:10]:
+        print(_line(k, pl["candidates"][k]))
     for label, t in res["two_stage"].items():
         print(f"\nrecall of the top {TOP} by {t['final']} ({label}):")
         for s, row in list(t["first_stages"].items())[:6]:
