@@ -481,6 +481,8 @@ def _pair_local(cands: dict, labs: dict, gmds_names: list) -> dict:
     best = min(r["J"] for r in rows.values())
     ties = [k for k, r in rows.items() if r["J"] <= best + J_TIE]
     chosen = min(rows, key=lambda k: rows[k]["J"])
+    r = rows[chosen]
+    cands[chosen] = {c: combine(cands[r["signature"]][c], cands[r["gmds"]][c], f"geo {r['weight']}") for c in COLLECTIONS}
     return {"procedure": f"lowest J among S^w G^(1-w), w in {list(GEO_WEIGHTS)}, S in {list(PAIR_LOCAL_SIGNATURES)}, "
                          f"G the best 3 GMDS matrices; ties: within {J_TIE} of the lowest J",
             "candidates": dict(sorted(rows.items(), key=lambda kv: kv[1]["J"])), "ties": ties,
@@ -646,7 +648,8 @@ def main(argv=None) -> None:
     best = ranking[0]
     best_combo = by_j("combination")[0] if combos else None
     # two-stage: recall of the final ranking's top 10 within a first stage's top K
-    finals = {"best": best, "best_gmds": best_gmds[0], "default": "gmds[default] trimmed"}
+    finals = {"best": best, "best_gmds": best_gmds[0], "default": "gmds[default] trimmed",
+              "pair_local": pair_local["chosen"]["name"]}
     two = {}
     for label, F in finals.items():
         if F not in cands:
