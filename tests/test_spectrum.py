@@ -105,3 +105,48 @@ def test_pairwise_ranks_by_the_combined_distance(tmp_path, capsys):
     assert two["candidates"] == 1 and two["pairs_skipped"] >= 2
     assert main([*base, "--candidates", "1", "-k", "2"]) == 2
     assert "must be at least -k" in capsys.readouterr().err
+
+
+def test_nearest_ranks_by_the_combined_distance_and_searches_in_two_stages():
+    from gromov.retrieval import nearest
+
+    shapes = [ShapeMetric(m, "geodesic", resolution=None) for m in _sheets()]
+    full = gh_matrix(shapes, "geodesic", n_samples=15, jobs=1, spectral=True)
+    r = nearest(shapes[0], shapes[1:], k=4, metric="geodesic", n_samples=15, rank_by="combined", prune="none")
+    assert r.rank_by == "combined" and r.full_matches == 4
+    for nb in r.neighbors:
+        assert nb.distance == pytest.approx(full.combined[0, nb.index + 1], rel=1e-12)
+    assert [nb.distance for nb in r.neighbors] == sorted(nb.distance for nb in r.neighbors)
+    # exact pruning stays exact: the same neighbours as matching every candidate
+    b = nearest(shapes[0], shapes[1:], k=2, metric="geodesic", n_samples=15, rank_by="combined", prune="bound")
+    assert [nb.index for nb in b.neighbors] == [nb.index for nb in r.neighbors[:2]]
+    two = nearest(shapes[0], shapes[1:], k=1, metric="geodesic", n_samples=15, candidates=2)
+    first = np.argsort(full.spectral[0, 1:], kind="stable")[:2]
+    assert two.full_matches == 2 and two.skipped == 2 and not two.exact
+    assert set(two.values) == set(first.tolist())
+
+
+def test_search_a_store_in_two_stages(tmp_path, capsys):
+    from gromov.retrieval import SPECTRUM_NAME
+    from gromov.spectrum import SPECTRUM_K
+    from gromov.store import ShapeStore
+
+    files = []
+    for i, m in enumerate(_sheets()):
+        f = tmp_path / f"s{i}.off"
+        gromov.save(m, f)
+        files.append(str(f))
+    store = tmp_path / "store"
+    opts = ["--metric", "geodesic", "--resolution", "1000"]
+    assert main(["index", *files, "--store", str(store), *opts, "-q"]) == 0
+    capsys.readouterr()
+    argv = ["search", files[0], "--store", str(store), *opts, "--samples", "15", "-k", "1", "--candidates", "2", "--rank-by",
+            "combined", "--json", "-q"]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["full_matches"] == 2 and res["skipped"] == 2 and res["ranked_by"] == "combined"
+    st = ShapeStore(store)
+    kept = [e for e in st.entries() if st.extra(e.key, f"{SPECTRUM_NAME}:k={SPECTRUM_K}") is not None]
+    assert len(kept) == 4   # every candidate's signature kept for the next search
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["neighbors"] == res["neighbors"]

@@ -87,7 +87,7 @@ from .gh import RANK_LOG_FLOOR, _match, _upgrade_options, check_rank_residual, c
 from .gmds import EmbeddedDistance, norm_value, parse_norm, trimmed_rms
 from .shape_metric import ShapeMetric
 
-__all__ = ["BOUND_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs", "NearestResult", "Neighbor",
+__all__ = ["BOUND_NAME", "SPECTRUM_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs", "NearestResult", "Neighbor",
            "ShapeBound", "knn_pairs", "nearest", "pair_bound", "profile_gap", "shape_bound"]
 
 logger = logging.getLogger(__name__)
@@ -115,6 +115,10 @@ BOUND_NAME = "retrieval-bound-1"
 #: Relative margin that keeps the bound below the ranked value whatever the rounding.
 _MARGIN = 1e-9
 _RANK_BY = ("trimmed", "gh")
+#: What :func:`nearest` can rank by: also the combined distance (:func:`gromov.spectrum.combined`).
+_NEAREST_RANK_BY = ("trimmed", "gh", "combined")
+#: Name (with the length appended) of the spectral signature kept beside a store entry.
+SPECTRUM_NAME = "spectrum-1"
 
 
 @dataclass(frozen=True, eq=False)
@@ -487,7 +491,7 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
             rank_by: str = "trimmed", rank_tau_scale: float | None = RANK_TAU_SCALE,
             rank_residual: str = RANK_RESIDUAL, prune: str = "profile", slack: float = PROFILE_SLACK,
             triangle_slack: float | None = TRIANGLE_SLACK, known: dict | None = None,
-            progress: bool = False, **match_options) -> NearestResult:
+            candidates: int | None = None, progress: bool = False, **match_options) -> NearestResult:
     """The ``k`` shapes nearest to ``query``, ranked as :func:`gromov.experiments.gh_matrix` ranks.
 
     Each candidate's lower bound on its ranked value (:func:`pair_bound`) and profile gap
@@ -510,8 +514,11 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         Neighbours returned (all candidates when there are fewer).
     metric, n_samples, seed, resolution, metric_options
         As in :func:`gromov.experiments.gh_matrix` (recognition's metric: raw heat units).
-    rank_by : {"trimmed", "gh"}, default "trimmed"
-        The trimmed distortion (``PairwiseGH.trimmed``) or the relative GH estimate.
+    rank_by : {"trimmed", "gh", "combined"}, default "trimmed"
+        The trimmed distortion (``PairwiseGH.trimmed``), the relative GH estimate, or the
+        trimmed distortion and the spectral distance together (``PairwiseGH.combined``,
+        :func:`gromov.spectrum.combined`; the keys and bounds below become S^w times theirs
+        to the power 1 - w, which keeps a lower bound a lower bound; no triangle estimates).
     rank_tau_scale, rank_residual
         As in :func:`gromov.experiments.gh_matrix`.
     prune : {"profile", "bound", "none"}, default "profile"
@@ -529,6 +536,10 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         ``{(i, j): ranked value}`` of pairs of candidates (positions in ``shapes``) found
         before, for the triangle estimates; with a store, its recorded pairs with these options
         are read as well. The query's own recorded pairs are never read: it is matched.
+    candidates : int, optional
+        A two-stage search: only the ``candidates`` shapes nearest to the query by spectral
+        distance (:func:`gromov.spectrum.spectrum`, kept beside each store entry) are matched,
+        all of them; ``prune`` and the triangle estimates are not used. Not exact.
     progress : bool, default False
         A progress bar (tqdm) on stderr.
     **match_options
@@ -544,8 +555,15 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     >>> [(n.name, n.distance) for n in r.neighbors], r.skipped  # doctest: +SKIP
     """
     k = _check_k(k)
+    if rank_by not in _NEAREST_RANK_BY:
+        raise ValueError(f"rank_by must be one of {_NEAREST_RANK_BY}, got {rank_by!r}")
+    combine = rank_by == "combined"
+    rank_by = "trimmed" if combine else rank_by   # what is matched and bounded
+    n_first = None if candidates is None else _check_k(candidates)
     _checked(rank_by, rank_residual, match_options.get("norm", "l2"))
     triangle = _check_prune(prune, slack, triangle_slack)
+    if combine or n_first is not None:
+        triangle = None   # recorded values are not the combined ones; a two-stage search matches them all
     rank_tau_scale = check_rank_tau_scale(rank_tau_scale)
     options = _options(n_samples, seed, rank_tau_scale, rank_residual, match_options, "nearest")
     shape_args = {"resolution": resolution, "metric_options": metric_options}
@@ -571,26 +589,44 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
     from tqdm import tqdm
 
-    bar = tqdm(total=len(candidates), desc="nearest", disable=not progress, leave=False)
+    spectral = weight = None
+    keys = _keys(bounds, gaps, prune, slack)
+    if combine or n_first is not None:
+        from .spectrum import SPECTRUM_WEIGHT, spectrum
+
+        qs = spectrum(query_shape)
+        spectral = np.array([_spectral_distance(qs, c.spectrum()) for c in candidates])
+        weight = SPECTRUM_WEIGHT
+    if combine:   # S^w B^(1 - w) <= S^w G^(1 - w) wherever B <= G
+        keys = np.where(np.isfinite(keys), spectral**weight * np.maximum(keys, 0.0) ** (1.0 - weight), keys)
+    todo = np.arange(len(candidates))
+    if n_first is not None:   # the first stage: the nearest by spectral distance, all matched
+        todo = np.argsort(spectral, kind="stable")[:n_first]
+        keys = np.full(len(candidates), np.inf)
+        keys[todo] = -np.inf
+    bar = tqdm(total=len(todo), desc="nearest", disable=not progress, leave=False)
 
     def run(pairs):
         out = []
         for (_, j) in pairs:
             r = _match(query_shape, candidates[j].shape(), metric, **options)
-            out.append(_ranked(r, rank_by))
+            v = _ranked(r, rank_by)
+            out.append(spectral[j] ** weight * v ** (1.0 - weight) if combine else v)
             bar.update(1)
         return out
 
-    pairs = [(0, j) for j in range(len(candidates))]
+    pairs = [(0, int(j)) for j in todo]
     try:
-        values, rows, n_run, n_skipped = _schedule(pairs, lambda ij: [(0, ij[1])], _keys(bounds, gaps, prune, slack),
-                                                   gaps, min(k, len(candidates)), 1, run, known={},
+        values, rows, n_run, n_skipped = _schedule(pairs, lambda ij: [(0, ij[1])], keys[todo],
+                                                   gaps[todo], min(k, len(candidates)), 1, run, known={},
                                                    triangle=triangle, nodes=lambda ij: (-1, ij[1]))
     finally:
         bar.close()
     neighbors = [Neighbor(j, candidates[j].name, v) for v, j in rows.best[0]]
-    return NearestResult(neighbors, n_run, n_skipped, bounds, gaps, {j: v for (_, j), v in values.items()},
-                         prune == "bound" or prune == "none", rank_by, n_known)
+    return NearestResult(neighbors, n_run, n_skipped + len(candidates) - len(todo), bounds, gaps,
+                         {j: v for (_, j), v in values.items()},
+                         n_first is None and (prune == "bound" or prune == "none"),
+                         "combined" if combine else rank_by, n_known)
 
 
 # ----------------------------------------------------------------------------- candidates
@@ -598,13 +634,19 @@ class _Candidate:
     """A shape to search: its invariants (possibly kept in a store) and, when it is matched,
     its prepared shape (read from the store only then, and let go after)."""
 
-    def __init__(self, name: str, bound, shape):
+    def __init__(self, name: str, bound, shape, spectrum=None):
         self.name, self._bound, self._shape = name, bound, shape
+        self._spectrum = spectrum if spectrum is not None else (lambda: _spectrum_of(self.shape()))
 
     def bound(self) -> ShapeBound:
         if callable(self._bound):
             self._bound = self._bound()
         return self._bound
+
+    def spectrum(self) -> np.ndarray:
+        if callable(self._spectrum):
+            self._spectrum = self._spectrum()
+        return self._spectrum
 
     def shape(self) -> ShapeMetric:
         return self._shape() if callable(self._shape) else self._shape
@@ -628,6 +670,18 @@ def _candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_sca
     names = [os.fspath(s) if isinstance(s, (str, os.PathLike)) else f"shape {i}" for i, s in enumerate(items)]
     return ([_Candidate(n, (lambda s=s: shape_bound(s, n_samples, seed, rank_tau_scale)), s)
              for n, s in zip(names, prepared)], q, None)
+
+
+def _spectrum_of(shape) -> np.ndarray:
+    from .spectrum import spectrum
+
+    return spectrum(shape)
+
+
+def _spectral_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Euclidean distance between two spectral signatures, over the entries both have."""
+    ok = np.isfinite(a) & np.isfinite(b)
+    return float(np.sqrt(((a[ok] - b[ok]) ** 2).sum()))
 
 
 def _prepared(s, metric, shape_args) -> ShapeMetric:
@@ -690,6 +744,19 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
         return compute
 
     kept = [e for e in entries if e.key != query_key]
+    from .spectrum import SPECTRUM_K
+
+    spectrum_name = f"{SPECTRUM_NAME}:k={SPECTRUM_K}"
+
+    def spectrum_of(e):
+        def compute():
+            got = store.extra(e.key, spectrum_name)
+            if got is not None and "dna" in got:
+                return np.asarray(got["dna"], dtype=np.float64)
+            dna = _spectrum_of(_entry_shape(store, e, shape_args, tau))
+            store.put_extra(e.key, spectrum_name, {"dna": dna})
+            return dna
+        return compute
 
     def recorded(options):
         from .store import match_options_key
@@ -699,8 +766,8 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
         found = store.pair_values_among(at, match_options_key(options["n_samples"], options["seed"], rest))
         return {(at[x], at[y]): v for (x, y), v in found.items()}
 
-    return ([_Candidate(e.path or e.key, bound_of(e), (lambda e=e: _entry_shape(store, e, shape_args, tau)))
-             for e in kept], q, recorded)
+    return ([_Candidate(e.path or e.key, bound_of(e), (lambda e=e: _entry_shape(store, e, shape_args, tau)),
+                        spectrum_of(e)) for e in kept], q, recorded)
 
 
 def _entry_shape(store, entry, shape_args, rank_tau_scale) -> ShapeMetric:

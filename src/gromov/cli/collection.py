@@ -105,7 +105,7 @@ def cmd_search(args) -> int:
         r = nearest(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
                     resolution=args.resolution, metric_options=options, rank_by=args.rank_by,
                     rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual, prune=args.prune,
-                    slack=args.slack, triangle_slack=args.triangle_slack,
+                    slack=args.slack, triangle_slack=args.triangle_slack, candidates=args.candidates,
                     progress=not (args.quiet or args.json))
     finally:
         _close_store(store, handler)
@@ -115,9 +115,12 @@ def cmd_search(args) -> int:
                       "seconds": seconds}))
         return 0
     n = r.full_matches + r.skipped
-    what = "trimmed distortion" if args.rank_by == "trimmed" else "GH distance"
-    how = ("exact" if r.exact else "by the profile gap" + (f" and {r.known_pairs:,} recorded distances between "
-                                                          "them" if r.known_pairs else "") + ": not exact")
+    what = _RANKED_WORDS[args.rank_by]
+    if args.candidates is not None:
+        how = f"the {args.candidates} nearest by spectral distance matched: not exact"
+    else:
+        how = ("exact" if r.exact else "by the profile gap" + (f" and {r.known_pairs:,} recorded distances between "
+                                                              "them" if r.known_pairs else "") + ": not exact")
     print(f"{len(r.neighbors)} nearest of {n} shapes by {what}; {r.full_matches} matched, {r.skipped} "
           f"skipped ({how}), {seconds:.1f} s")
     width = max(len(x.name) for x in r.neighbors)
@@ -137,9 +140,10 @@ def _search_parser(sub) -> None:
                    help=f"working mesh vertex count the store was indexed with (default {DEFAULT_RESOLUTION})")
     q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
     q.add_argument("--seed", type=int, default=0)
-    q.add_argument("--rank-by", choices=("trimmed", "gh"), default="trimmed",
+    q.add_argument("--rank-by", choices=("trimmed", "gh", "combined"), default="trimmed",
                    help="rank by the trimmed distortion of each pair's correspondence (default, as "
-                        "pairwise) or by the GH estimate")
+                        "pairwise), by the GH estimate, or by the trimmed distortion and the "
+                        "spectral distance (Shape-DNA) together")
     q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
                    help=f"heat-kernel diffusion: the trimmed ranking's heat distance at S times the "
                         f"diffusion time (default {RANK_TAU_SCALE:g}, as pairwise and index)")
@@ -158,6 +162,10 @@ def _search_parser(sub) -> None:
                         "exceeds the k-th distance found, for the shapes m matched so far whose "
                         "distance to it the store has recorded (gromov pairwise records them; "
                         f"default {TRIANGLE_SLACK:g}; 0: off)")
+    q.add_argument("--candidates", type=_positive_int, default=None, metavar="C",
+                   help="a two-stage search: match only the C shapes nearest to the query by "
+                        "spectral distance (Shape-DNA, kept in the store once computed), all of "
+                        "them; --prune is not used")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)
