@@ -1,8 +1,9 @@
 """Recognition on TOSCA and the SHREC'07 watertight collection: gromov against two per-shape descriptors.
 
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_recognition.py [--data DIR]
-          [--collections tosca,watertight] [--per-class 6] [--shapes N] [--methods shapedna,hks,gromov]
+          [--collections tosca,watertight] [--per-class 6] [--shapes N] [--methods shapedna,hks,gromov,combined]
           [--jobs 2] [--seed 0] [--samples 100] [--resolution 3000] [--cache DIR]
+          [--combined-per-class N] [--combined-samples 50] [--candidates C]
           [--json benchmarks/results/recognition.json]
 
 The collections (labels from the file names, ``cat10.off.gz`` -> ``cat``, ``chair07.off.gz`` ->
@@ -32,6 +33,14 @@ in one run:
   estimate, ``--rank-by gh``), on at most ``--per-class`` shapes of each class, drawn with
   ``--seed`` (:func:`class_subset`); the two descriptors are scored on that subset too (rows
   "on the gromov subset"), so that the three are compared on the same shapes.
+
+- **gromov combined** (``--methods combined``): :func:`gromov.experiments.gh_matrix` as ``gromov
+  pairwise FILES --units area --samples 50 --rank-by combined`` runs it (each shape measured at
+  unit area; each pair ranked by S^0.35 G^0.65, S the Shape-DNA distance of the working meshes, G
+  the trimmed distortion; docs/design/recognition.md, "Across collections"), on
+  ``--combined-per-class`` shapes of each class (0: all); with ``--candidates C`` as a two-stage
+  search (``--candidates C``): only each shape's C nearest by S are matched, the other pairs
+  ranked after them by S, and no EER (not every pair is matched).
 
 ``--shapes N`` keeps at most N shapes of each collection for every method (spread over the
 classes as :func:`class_subset` spreads them), for a quick check.
