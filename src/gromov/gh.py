@@ -101,10 +101,11 @@ class _Fit:
     orientation: float = float("nan")
 
 
-def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", solver: str = "gmds",
+def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", solver: str = "gmds",
           init: str = "greedy", seed: int = 0, resolution: int | None = DEFAULT_RESOLUTION,
           metric_options: dict | None = None, radius: float | None = None, orientation: str = "prefer",
-          search: SearchOptions | None = None, dense: bool | str = False, **deprecated) -> MatchResult:
+          search: SearchOptions | None = None, dense: bool | str = False, partial: bool = False,
+          **deprecated) -> MatchResult:
     r"""Gromov-Hausdorff distance and correspondence between two shapes.
 
     Minimises the distortion of a two-sided correspondence C between farthest point samples,
@@ -120,7 +121,8 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         either side the map is the search's discrete one: images at points.
     Y : same as X
         The second shape.
-    metric : {"diffusion", "geodesic", "euclidean"}, default "diffusion"
+    metric : {"diffusion", "geodesic", "euclidean"}, optional
+        Default "diffusion"; with ``partial=True`` "geodesic" (or a prepared shape's metric).
     n_samples : int, default 100
         Farthest point samples per shape.
     norm : {"l2", "linf"} or "p:VALUE", default "l2"
@@ -152,6 +154,13 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
         Also map every input vertex (:mod:`gromov.dense`). True or "input": placed from the
         samples, then refined by ZoomOut on the input meshes; "zoomout": refined on the
         working meshes instead; "placed": not refined.
+    partial : bool, default False
+        X is a part of Y (given, not detected): only X's samples are embedded into Y, the
+        part measured in Y's metric, samples near X's boundary down-weighted; the result also
+        holds the region of Y the part covers (``y_covered``, ``covered_fraction``). See
+        :func:`gromov.partial.match_partial` (which takes ``metric``, ``n_samples``, ``seed``,
+        ``resolution``, ``metric_options``, ``search`` and ``dense``; the other options are for
+        two whole shapes).
 
     Returns
     -------
@@ -163,6 +172,20 @@ def match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", s
     >>> r.relative_distance, r.x_to_y_vertex[:3]                # doctest: +SKIP
     """
     options = _upgrade_options({**deprecated, "search": search}, "match")
+    if partial:
+        from .partial import PARTIAL_METRIC, match_partial
+
+        if metric is None:
+            prepared = [s.metric for s in (X, Y) if isinstance(s, ShapeMetric)]
+            metric = prepared[0] if prepared else PARTIAL_METRIC
+        _check_choices(solver, init, orientation, dense, None, "difference")
+        if solver != "gmds" or init != "greedy" or radius is not None or parse_norm(norm) != 2.0:
+            raise ValueError("partial=True takes the L2 norm, GMDS from the initial search and no radius")
+        return match_partial(X, Y, metric, n_samples=n_samples, seed=seed, resolution=resolution,
+                             metric_options=metric_options, search=options.get("search", SearchOptions()),
+                             dense=dense)
+    if metric is None:
+        metric = "diffusion"
     return _match(X, Y, metric, n_samples=n_samples, norm=norm, solver=solver, init=init, seed=seed,
                   resolution=resolution, metric_options=metric_options, radius=radius,
                   orientation=orientation, dense=dense, interval=True, **options)

@@ -71,6 +71,17 @@ class MatchResult:
         found; the upper bound half the largest distortion of the correspondence found, each
         image snapped to the nearest sample of the other shape. Only :func:`match` computes it
         (NaN from :func:`gromov.experiments.gh_matrix`, whose pairs skip it).
+    partial : bool
+        Whether X was matched as a part of Y (``match(..., partial=True)``,
+        :mod:`gromov.partial`): then ``distance`` is half the weighted RMS of the one-sided
+        residuals over X's samples (``pair_distortion`` is ``(M, M)``), and Y's samples outside
+        the covered region have no image (face and vertex -1).
+    y_covered : ndarray (n_Y,) of bool or None
+        With ``partial``: the region of Y the part covers, per file vertex of Y.
+    covered_fraction : float
+        With ``partial``: that region's share of Y's area (NaN otherwise).
+    x_weight : ndarray (M,) or None
+        With ``partial``: each X sample's weight in the distortion (small near X's boundary).
     """
 
     distance: float
@@ -107,18 +118,26 @@ class MatchResult:
     y_to_x_dense_bary: np.ndarray | None = field(repr=False, default=None)
     y_to_x_dense_vertex: np.ndarray | None = field(repr=False, default=None)
     input_faces: tuple = field(repr=False, default=(None, None))
+    partial: bool = False
+    y_covered: np.ndarray | None = field(repr=False, default=None)
+    covered_fraction: float = float("nan")
+    x_weight: np.ndarray | None = field(repr=False, default=None)
 
     def to_dict(self) -> dict:
         """The JSON fields of ``gromov match --json``."""
-        return {"distance": self.distance, "relative_distance": self.relative_distance,
-                "distortion": {"l2": self.distortion_l2, "linf": self.distortion_linf,
-                               "trimmed": self.distortion_trimmed, self.norm: self.distortion},
-                "relative_trimmed_distance": self.relative_trimmed,
-                "norm": self.norm, "metric": self.metric, "solver": self.solver,
-                "n_samples": self.n_samples, "n_iter": self.n_iter, "converged": self.converged,
-                "orientation": self.orientation if np.isfinite(self.orientation) else None,
-                "gh_interval": [v if np.isfinite(v) else None for v in self.gh_interval],
-                "seconds": self.seconds}
+        out = {"distance": self.distance, "relative_distance": self.relative_distance,
+               "distortion": {"l2": self.distortion_l2, "linf": self.distortion_linf,
+                              "trimmed": self.distortion_trimmed, self.norm: self.distortion},
+               "relative_trimmed_distance": self.relative_trimmed,
+               "norm": self.norm, "metric": self.metric, "solver": self.solver,
+               "n_samples": self.n_samples, "n_iter": self.n_iter, "converged": self.converged,
+               "orientation": self.orientation if np.isfinite(self.orientation) else None,
+               "gh_interval": [v if np.isfinite(v) else None for v in self.gh_interval],
+               "seconds": self.seconds}
+        if self.partial:
+            out["partial"] = True
+            out["covered_fraction"] = self.covered_fraction
+        return out
 
     @property
     def sample_distortion(self) -> tuple[np.ndarray, np.ndarray]:
@@ -144,13 +163,17 @@ class MatchResult:
 
     def arrays(self) -> dict:
         """The arrays of ``gromov match --out``: the correspondences, ``x_distortion``,
-        ``y_distortion`` (:attr:`sample_distortion`), and the dense maps when computed."""
+        ``y_distortion`` (:attr:`sample_distortion`), the dense maps when computed, and with
+        ``partial`` ``y_covered`` and ``x_weight``."""
         keys = ["x_samples", "x_to_y_face", "x_to_y_bary", "x_to_y_vertex",
                 "y_samples", "y_to_x_face", "y_to_x_bary", "y_to_x_vertex"]
         if self.has_dense:
-            keys += [f"{d}_dense_{k}" for d in ("x_to_y", "y_to_x") for k in ("vertex", "face", "bary")]
+            keys += [f"{d}_dense_{k}" for d in ("x_to_y", "y_to_x") for k in ("vertex", "face", "bary")
+                     if getattr(self, f"{d}_dense_{k}") is not None]
         out = {k: getattr(self, k) for k in keys}
         out["x_distortion"], out["y_distortion"] = self.sample_distortion
+        if self.partial:
+            out["y_covered"], out["x_weight"] = self.y_covered, self.x_weight
         return out
 
     def transfer(self, values, *, method: str = "nearest", direction: str = "x_to_y") -> np.ndarray:
@@ -183,6 +206,9 @@ class MatchResult:
         if method not in ("nearest", "barycentric"):
             raise ValueError(f"method must be 'nearest' or 'barycentric', got {method!r}")
         back = "y_to_x" if direction == "x_to_y" else "x_to_y"  # the target's images on the source
+        if getattr(self, f"{back}_dense_vertex") is None:
+            raise ValueError(f"a partial match maps the part into the whole only: transfer values "
+                             f"the other way (direction={'y_to_x' if direction == 'x_to_y' else 'x_to_y'!r})")
         vertex, face, bary = (getattr(self, f"{back}_dense_{k}") for k in ("vertex", "face", "bary"))
         n_source = len(getattr(self, f"{direction}_dense_vertex"))
         v = np.asarray(values)

@@ -21,6 +21,10 @@ def cmd_match(args) -> int:
     from ..search import SearchOptions
     from ..shape_metric import ShapeMetric
 
+    if args.metric is None:
+        from ..partial import PARTIAL_METRIC
+
+        args.metric = PARTIAL_METRIC if args.partial else "diffusion"
     options = correspondence_options(args.metric, _metric_options(args))
     store, handler = _open_store(args)
     if store is None:
@@ -80,8 +84,11 @@ def cmd_match(args) -> int:
     search = SearchOptions(search_vertices=args.search_vertices,
                            **({} if args.signature_weight is None else {"signature_weight": args.signature_weight}))
     _status(args, f"matching {args.samples} samples" + (", then the dense maps" if dense else ""))
+    if args.partial and (args.norm != "l2" or args.solver != "gmds"):
+        raise _UserError("--partial takes the l2 norm and the gmds solver")
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
-              solver=args.solver, seed=args.seed, orientation=args.orientation, dense=dense, search=search)
+              solver=args.solver, seed=args.seed, orientation=args.orientation, dense=dense, search=search,
+              partial=args.partial)
     if args.out:
         atomic_savez_compressed(Path(args.out), **r.arrays())
     if args.map:   # SHREC's exchange format: one 1-based vertex id of Y per vertex of X
@@ -98,6 +105,8 @@ def cmd_match(args) -> int:
                                          "shapes_computed": store.computed}
     if args.json:   # the metric's options too: the distance's units depend on them
         print(_dumps({**r.to_dict(), "metric_options": options, **({} if stored is None else {"store": stored})}))
+    elif args.partial:
+        _print_partial(r, args, dense, store, stored)
     else:
         print(f"{args.x} vs {args.y}: Gromov-Hausdorff distance {r.distance:.6g} "
               f"({r.norm} norm, {r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
@@ -128,12 +137,31 @@ def cmd_match(args) -> int:
     return 0
 
 
+def _print_partial(r, args, dense, store, stored) -> None:
+    print(f"{args.x} as a part of {args.y}: partial distance {r.distance:.6g} ({r.relative_distance:.4%} "
+          f"of the diameter of {args.y}), {args.metric} metric, {r.n_samples} samples of the part")
+    print(f"  covered region: {r.covered_fraction:.1%} of the area of {args.y} "
+          f"({int(r.y_covered.sum())} of its vertices); weighted rms distortion {r.distortion_l2:.6g}, "
+          f"max {r.distortion_linf:.6g}; {r.n_iter} iterations, "
+          f"{'converged' if r.converged else 'not converged'}, {r.seconds:.2f} s")
+    if dense:
+        print(f"  dense map: {len(r.x_to_y_dense_vertex)} vertices of the part on the whole")
+    if stored is not None:
+        print(f"  store {args.store}: {store.reused} of 2 shapes read from it, {store.computed} computed")
+    for f in (args.out, args.map, args.plot, args.html):
+        if f:
+            print(f"  wrote {f}")
+
+
 def _match_parser(sub) -> None:
     q = sub.add_parser("match", help="Gromov-Hausdorff distance and correspondence of two shapes")
     q.add_argument("x", help="first mesh (or point cloud: a file without faces; its images are points, "
                              "face -1 in --out)")
     q.add_argument("y", help="second mesh (or point cloud)")
     _add_metric_args(q, "normalized (the correspondence's; raw when --tau is given)")
+    for action in q._actions:   # with --partial the metric defaults to geodesic
+        if action.dest == "metric":
+            action.default, action.help = None, "distance on the surface (default: diffusion; with --partial geodesic)"
     q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
     q.add_argument("--norm", type=_norm_arg, default="l2", help="l2 (default), linf or p:VALUE")
     q.add_argument("--solver", choices=("gmds", "gw"), default="gmds",
@@ -170,6 +198,11 @@ def _match_parser(sub) -> None:
                    help="write one self-contained page showing both shapes side by side, to turn "
                         "and zoom: X's colours carried to Y by the dense map, and the sample "
                         "correspondences (implies --dense; needs plotly)")
+    q.add_argument("--partial", action="store_true",
+                   help="X is a part of Y (given, not detected): only X's samples are embedded "
+                        "into Y, X measured in Y's metric, samples near X's boundary down-weighted; "
+                        "reports the partial distance, the share of Y's area the part covers and "
+                        "the covered region (y_covered in --out, grey outside it in --plot and --html)")
     q.add_argument("--store", default=None, metavar="DIR",
                    help="shape store (gromov index): read each shape's working mesh and metric, "
                         "in the correspondence's metric options, from it or add them (created if "
@@ -213,6 +246,14 @@ def _plot_dense(r, shapes, args) -> None:
     sx, sy = shapes
     x_rgb = coordinate_colours(sx.input)
     y_rgb = r.transfer(sx.input.per_file_vertex(x_rgb, fill=0.0), method="barycentric")[sy.input.input_ids]
+    if r.partial:   # outside the region the part covers: grey
+        outside = ~r.y_covered[sy.input.input_ids] | ~np.isfinite(y_rgb).all(axis=1)
+        y_rgb[outside] = 0.8
+        plot_transfer(sx.input, sy.input, x_rgb, y_rgb, args.plot,
+                      titles=(Path(args.x).name, Path(args.y).name),
+                      title=f"{args.metric}: colours of the part {Path(args.x).name} carried by the dense map\n"
+                            f"(grey: outside the covered region, {outside.mean():.0%} of the vertices)")
+        return
     _, e_y = r.sample_distortion
     q = sy.working.from_source(sy.input.from_input_ids(r.y_samples))
     nearest = np.argmin(sy.distances[:, q], axis=1)[sy.working.source_nearest]

@@ -1,0 +1,430 @@
+r"""Partial matching: a part of a shape matched into a whole one (``match(part, whole, partial=True)``).
+
+A part (a shape cut by a plane, or with large holes) is isometric to a *region* of the whole,
+not to all of it, so the two-sided Gromov-Hausdorff distortion of :func:`gromov.match` --
+every point of either shape must have an image -- is the wrong objective: the whole's samples
+outside the part have nowhere to go, and the best two-sided map folds the whole onto the
+part. Partial similarity (Bronstein, Bronstein, Bruckstein & Kimmel, "Partial similarity of
+objects, or how to compare a centaur to a horse", IJCV 84(2), 2009) instead measures how well
+a part of one shape fits into the other. Here the part is *given*: the first shape is the
+part, the second the whole, and
+
+1. **one metric.** The part is measured in the whole's metric: with the heat-kernel
+   diffusion distance the diffusion time is ``t = tau x area`` of each shape, so a part with
+   60% of the area would diffuse for 60% of the time and all its distances change; the part
+   takes the whole's absolute time ``t`` (and the same scale normalisation). Geodesic and
+   Euclidean distances need nothing.
+2. **one-sided distortion.** Only the part's samples are embedded into the whole (GMDS,
+   Bronstein, Bronstein & Kimmel, PNAS 2006), minimising
+
+   .. math:: \sigma(Q') = \frac{\sum_{i \ne j} w_i w_j \big(d_X(p_i, p_j) - d_Y(q'_i, q'_j)\big)^2}
+                               {\sum_{i \ne j} w_i w_j} ,
+
+   the partial distortion; its square root halved is :attr:`MatchResult.distance
+   <gromov.match_result.MatchResult.distance>`.
+3. **the cut down-weighted.** A cut changes the part's distances most near its new boundary
+   (heat cannot cross it), so each sample weighs :math:`w_i = \min(1, b_i / \beta)^2`, with
+   :math:`b_i` its distance to the part's boundary along the surface and :math:`\beta` =
+   ``boundary`` x the whole's :math:`\sqrt{\text{area}}`. The initial search
+   (:mod:`gromov.search`, one direction) places the interior samples first.
+
+The region of the whole the part covers is read off the dense map: the whole's vertices within
+one edge length (along the whole's surface) of the image of a part vertex. Its share of the
+whole's area is reported with the distance. The measurements behind these choices are in
+docs/design/partial.md.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+
+import numpy as np
+from scipy.sparse import csgraph
+
+from ._arrays import one_blas_thread
+from ._defaults import DEFAULT_RESOLUTION
+from ._gmds_kernel import sweep
+from .errors import MetricError
+from .gmds import SurfacePoints, norm_value
+from .match_result import MatchResult
+from .mesh import Mesh, as_shape
+from .metrics.diffusion import correspondence_options
+from .search import SearchOptions, _candidates, _orient, _Search, anchored_images, signature_mismatch
+from .shape_metric import ShapeMetric
+
+__all__ = ["match_partial", "in_whole_metric", "boundary_distance", "sample_weights", "covered_region",
+           "local_anchored_map", "PARTIAL_METRIC", "BOUNDARY_WIDTH"]
+
+logger = logging.getLogger(__name__)
+
+#: The metric of ``match(part, whole, partial=True)`` when none is named: geodesic distances,
+#: which a cut changes only where shortest paths crossed the removed region (the heat-kernel
+#: diffusion distance changes everywhere near the new boundary; docs/design/partial.md).
+PARTIAL_METRIC = "geodesic"
+#: Width of the band along the part's boundary that is down-weighted, ÷ sqrt(area of the whole)
+#: (docs/design/partial.md).
+BOUNDARY_WIDTH = 0.1
+#: GMDS runs from this many of the initial search's extended starts (the lowest weighted
+#: distortion after GMDS wins).
+N_REFINE = 4
+#: A mirrored map is replaced by an orientation-preserving one whose distortion is at most this
+#: much (relative) above it, as :data:`gromov.gh.ORIENTATION_TOL`.
+ORIENTATION_TOL = 0.1
+#: ... or by its composition with the whole's reflection within this much, as
+#: :data:`gromov.gh.FLIP_TOL`.
+FLIP_TOL = 0.25
+#: The dense map places each vertex by its distances to this many nearest samples
+#: (:func:`local_anchored_map`).
+N_LOCAL = 16
+#: The covered region: the whole's vertices within ``COVER_RADIUS`` of its mean edge lengths of
+#: the image of a part vertex, after a closing of ``COVER_CLOSE`` edge lengths
+#: (:func:`covered_region`).
+COVER_RADIUS, COVER_CLOSE = 1.0, 2.0
+
+
+def _heat(s: ShapeMetric):
+    """The heat-kernel solver of ``s`` (looking through a hole-filling wrapper), or None."""
+    solver = s.solver
+    while solver is not None and not hasattr(solver, "t"):
+        solver = getattr(solver, "inner", None)
+    return solver if solver is not None and hasattr(solver, "area") else None
+
+
+def _prepare(s, metric: str, resolution, options: dict, name: str) -> ShapeMetric:
+    """``s`` as a ShapeMetric in ``options`` (a prepared one in its correspondence metric)."""
+    if isinstance(s, ShapeMetric):
+        if s.metric != metric:
+            raise ValueError(f"a ShapeMetric prepared for {s.metric!r} was given for metric {metric!r}")
+        return s.for_correspondence()
+    if not isinstance(s, (str, os.PathLike)):
+        s = as_shape(s, name=name)
+    return ShapeMetric(s, metric, resolution=resolution, metric_options=options)
+
+
+def in_whole_metric(sx: ShapeMetric, sy: ShapeMetric) -> ShapeMetric:
+    """The part ``sx`` measured as the whole ``sy`` is: with the heat-kernel diffusion metric at
+    the whole's absolute diffusion time (``tau = t_Y / area_X``, same units), else ``sx``."""
+    hx, hy = _heat(sx), _heat(sy)
+    if hx is None or hy is None:
+        return sx
+    tau = hy.t / hx.area
+    if np.isclose(tau, hx.tau, rtol=1e-12, atol=0.0):
+        return sx
+    options = {**sx.metric_options, "tau": float(tau), "units": hy.units}
+    return ShapeMetric(sx.input, sx.metric, metric_options=options, working=sx.working)
+
+
+def boundary_distance(mesh: Mesh) -> np.ndarray:
+    """``(n,)``: distance along the edges from each vertex to the mesh's boundary (inf on a
+    closed mesh)."""
+    bv = np.unique(mesh.boundary_edges.ravel())
+    if not len(bv):
+        return np.full(mesh.n_vertices, np.inf)
+    return csgraph.dijkstra(_edge_graph(mesh), directed=False, indices=bv, min_only=True)
+
+
+def sample_weights(distance_to_boundary: np.ndarray, width: float) -> np.ndarray:
+    r""":math:`w = \min(1, b / \beta)^2` of distances ``b`` to the boundary, ``width`` :math:`\beta`
+    (all ones for ``width = 0``)."""
+    b = np.asarray(distance_to_boundary, dtype=float)
+    if not width > 0:
+        return np.ones_like(b)
+    return np.minimum(1.0, b / width) ** 2
+
+
+def _one_sided_gmds(sy: ShapeMetric, dx_pp: np.ndarray, W: np.ndarray, img: SurfacePoints,
+                    max_iter: int, tol: float, n_newton: int = 3):
+    """GMDS of the part's samples into Y: weighted L2 stress against ``dx_pp``; returns
+    ``(images, n_iter, converged, history)``."""
+    Y = sy.surface
+    eps = 1e-9 * Y.max_distance
+    pf, pb = img.face.copy(), img.bary.copy()
+    fixed = np.zeros(0, dtype=np.int64)
+    delta, w = np.ascontiguousarray(dx_pp), np.ascontiguousarray(W)
+
+    def stress():
+        dy = Y.between(SurfacePoints(pf, pb), fixed)
+        dy = 0.5 * (dy + dy.T)
+        return float(np.sum(w * (dx_pp - dy) ** 2))
+
+    cur = stress()
+    history, converged, n_iter = [cur], False, 0
+    for n_iter in range(1, max_iter + 1):
+        sweep(pf, pb, fixed, delta, w, Y.distances, Y.faces, Y.neighbours, n_newton, eps)
+        new = stress()
+        history.append(new)
+        if cur - new <= tol * max(cur, 1e-300):
+            converged, cur = True, new
+            break
+        cur = new
+    return SurfacePoints(pf, pb), n_iter, converged, history
+
+
+def _edge_graph(mesh: Mesh):
+    import scipy.sparse as sp
+
+    e = mesh.edges
+    w = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
+    return sp.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(mesh.n_vertices,) * 2).tocsr()
+
+
+def covered_region(mesh: Mesh, images: np.ndarray, radius: float, close: float = 0.0) -> np.ndarray:
+    """Mask of the vertices of ``mesh`` within ``radius`` (along its edges) of an image
+    vertex, after a closing of width ``close``: the region grown by ``radius + close``, then
+    the vertices within ``close`` of what is left outside removed (gaps narrower than about
+    ``2 close`` between images filled, the outline kept)."""
+    g = _edge_graph(mesh)
+    grow = radius + close
+    d = csgraph.dijkstra(g, directed=False, indices=np.unique(images), min_only=True, limit=grow * 1.000001)
+    region = d <= grow
+    if close > 0 and not region.all():
+        d_out = csgraph.dijkstra(g, directed=False, indices=np.flatnonzero(~region), min_only=True,
+                                 limit=close * 1.000001)
+        region &= ~(d_out < close)
+    return region
+
+
+def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, seed: int = 0,
+                  resolution: int | None = DEFAULT_RESOLUTION, metric_options: dict | None = None,
+                  search: SearchOptions | None = None, dense: bool | str = False,
+                  boundary: float = BOUNDARY_WIDTH, same_time: bool = True,
+                  n_refine: int = N_REFINE, interior_only: bool = True, n_local: int = N_LOCAL) -> MatchResult:
+    r"""A part ``X`` matched into a whole shape ``Y``: :func:`gromov.match` with ``partial=True``.
+
+    Parameters
+    ----------
+    X : mesh, path or ShapeMetric
+        The part (given, not detected: the first shape is the part).
+    Y : mesh, path or ShapeMetric
+        The whole.
+    metric, n_samples, seed, resolution, metric_options, search
+        As :func:`gromov.match`.
+    dense : bool or str, default False
+        Also the image of every input vertex of X on Y (placed from the samples; the spectral
+        refinement of full matches assumes two whole shapes and is not applied).
+    boundary : float, default BOUNDARY_WIDTH
+        Width of the down-weighted band along X's boundary, ÷ sqrt(area of Y); 0: no weights.
+    same_time : bool, default True
+        Measure X at Y's diffusion time (heat kernel); False: each at its own.
+    n_refine : int, default N_REFINE
+        GMDS from this many of the search's best starts; the lowest final distortion is kept.
+
+    Returns
+    -------
+    MatchResult
+        ``x_to_y_*`` and the dense ``x_to_y_dense_*``: the part's samples and vertices on the
+        whole; ``distance`` half the weighted RMS of the one-sided residuals;
+        ``y_covered``, ``covered_fraction``: the region of Y the part covers. Y's samples
+        (``y_samples``) get images only inside that region (elsewhere face -1, vertex -1).
+    """
+    t0 = time.perf_counter()
+    search = SearchOptions() if search is None else search
+    if n_samples < 3:
+        raise ValueError(f"n_samples must be at least 3, got {n_samples}")
+    options = correspondence_options(metric, metric_options)
+    sy = _prepare(Y, metric, resolution, options, "Y")
+    sx = _prepare(X, metric, resolution, options, "X")
+    if not (sx.has_faces and sy.has_faces):
+        raise ValueError("partial matching needs triangle meshes; X or Y is a point cloud")
+    for name, s in (("X", sx), ("Y", sy)):
+        if n_samples > s.mesh.n_vertices:
+            raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")
+    if same_time:
+        sx = in_whole_metric(sx, sy)
+    # samples of the part, the interior ones first (the coarse stages place the first ones)
+    P0 = sx.samples(n_samples, seed)
+    width = float(boundary) * np.sqrt(sy.mesh.area)
+    b = boundary_distance(sx.mesh)
+    wp0 = sample_weights(b[P0], width)
+    order = np.argsort(-np.minimum(wp0, 1.0), kind="stable")
+    P, wp = P0[order], wp0[order]
+    Q = sy.samples(n_samples, seed)
+    dx_pp = sx.distances[np.ix_(P, P)]
+    W = np.outer(wp, wp)
+    np.fill_diagonal(W, 0.0)
+    if not W.sum() > 0:
+        raise MetricError("every sample of X lies on its boundary: nothing to weigh (boundary=0 weighs "
+                          "all samples alike)")
+    with one_blas_thread():
+        n_interior = int(np.sum(wp >= 0.5)) if interior_only else len(P)
+        img, n_iter, converged, history, orientation = _search_and_refine(sx, sy, P, dx_pp, W, search, n_refine,
+                                                                          n_interior)
+    dy = sy.surface.between(img, np.zeros(0, dtype=np.int64))
+    dy = 0.5 * (dy + dy.T)
+    residual = dx_pp - dy
+    np.fill_diagonal(residual, 0.0)
+    off = ~np.eye(len(P), dtype=bool)
+    dis = float(np.sqrt(np.sum(W * residual**2) / W.sum()))
+    r = residual[off]
+    xy_face, xy_bary, xy_vertex = sy.locate(img)
+    # the dense map (working vertices of X -> working vertices of Y), the covered region
+    T = _placed(sx, sy, P, img, wp, n_local)
+    h = sy.mesh.mean_edge_length
+    covered_w = covered_region(sy.mesh, T, COVER_RADIUS * h, COVER_CLOSE * h)
+    covered = covered_w[sy.working.source_nearest]   # each input vertex as its nearest working vertex
+    areas = sy.input.vertex_areas
+    fraction = float(areas[covered].sum() / areas.sum())
+    y_covered = sy.input.per_file_vertex(covered, fill=False)
+    # Y's samples inside the region: the part's vertex whose image is nearest
+    yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w)
+    extra = {}
+    if dense:
+        from .dense import _by_file_id, _input_images
+
+        face, bary, vertex = _input_images(sx, sy, T)
+        m = _by_file_id(sx, face, bary, sy.input.input_ids[vertex])
+        back = _covered_back(sx, sy, T, covered_w, covered)
+        extra = {"x_to_y_dense_face": m.face, "x_to_y_dense_bary": m.bary, "x_to_y_dense_vertex": m.vertex,
+                 "y_to_x_dense_face": back.face, "y_to_x_dense_bary": back.bary, "y_to_x_dense_vertex": back.vertex,
+                 "input_faces": (sx.input.input_ids[sx.input.faces], sy.input.input_ids[sy.input.faces])}
+    diam = sy.diameter
+    return MatchResult(
+        distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
+        distortion_l2=dis, distortion_linf=norm_value(r, np.inf), norm="l2", metric=metric, solver="gmds",
+        n_samples=int(n_samples), x_samples=sx.working.to_input_ids(P), x_to_y_face=xy_face,
+        x_to_y_bary=xy_bary, x_to_y_vertex=xy_vertex, y_samples=sy.working.to_input_ids(Q),
+        y_to_x_face=yx_face, y_to_x_bary=yx_bary, y_to_x_vertex=yx_vertex, n_iter=int(n_iter),
+        converged=bool(converged), seconds=time.perf_counter() - t0, pair_distortion=residual,
+        history=np.asarray(history), orientation=orientation, partial=True, y_covered=y_covered, covered_fraction=fraction,
+        x_weight=wp, **extra)
+
+
+def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int, n_interior: int):
+    """The initial search in one direction, then one-sided GMDS from its ``n_refine`` best
+    starts and from the best orientation-preserving one: the lowest final distortion, or a
+    direct map within ``ORIENTATION_TOL`` of it when that one is mirrored. Returns ``(images,
+    n_iter, converged, history, orientation agreement)``."""
+    from .orientation import orientation_agreements
+
+    fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior)
+    DY = sy.distances
+    oriented = bool(sx.normals[1] and sy.normals[1])
+    (nx, _), (ny, _) = sx.normals, sy.normals
+
+    def score(img):
+        return float(np.sum(W * (dx_pp - DY[np.ix_(img, img)]) ** 2))
+
+    def refine(starts):
+        fits = []
+        for start in starts:
+            img, n_iter, converged, history = _one_sided_gmds(sy, dx_pp, W, SurfacePoints.at_vertices(sy.mesh, start),
+                                                              search.max_iter, search.tol)
+            o = float("nan")
+            if oriented:
+                pos = img.positions(sy.mesh.vertices, sy.mesh.faces)
+                nrm = np.einsum("kc,kcd->kd", img.bary, ny[sy.mesh.faces[img.face]])
+                o = float(orientation_agreements(sx.mesh.vertices[P], nx[P], dx_pp, pos[None], nrm[None])[0])
+            fits.append((history[-1], img, n_iter, converged, history, o))
+        return fits
+
+    starts = [complete(img) for img, _ in fwd.extend_plain(polish_all=True)[0]]
+    starts = sorted(starts, key=score)[:max(1, int(n_refine))]
+    fits = refine(starts)
+    best = min(fits, key=lambda f: f[0])
+    if oriented and not best[5] > 0.5:
+        # a mirrored map: GMDS from the best orientation-preserving starts too
+        more = [complete(img) for img, _ in
+                fwd.extend_preserving(_orient(sx, sy, P[:n_in], dx_pp[:n_in, :n_in]), fwd.per_stage)]
+        fits += refine(sorted(more, key=score)[:max(1, int(n_refine))])
+        tol = [ORIENTATION_TOL] * len(fits)
+        # and from the mirrored map composed with the whole's reflection (:meth:`ShapeMetric.symmetry`)
+        sym = sy.symmetry(len(P), 0)
+        if sym is not None:
+            fits += refine([sym[best[1].vertex(sy.mesh.faces)]])
+            tol.append(FLIP_TOL)
+        direct = [f for f, t in zip(fits, tol) if f[5] > 0.5 and f[0] <= (1.0 + t) ** 2 * best[0]]
+        if direct:
+            best = min(direct, key=lambda f: f[0])
+    logger.debug("partial fits: %s", [(f[0], f[5]) for f in fits])
+    return best[1], best[2], best[3], best[4], best[5]
+
+
+def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int):
+    """The initial search of :func:`gromov.match` in one direction (X's samples into Y) on the
+    interior samples (weight at least 1/2; P lists them first): ``(search, their number, a
+    function completing a start)`` -- the other samples placed where their distances to those
+    fit best (:func:`gromov.search.anchored_images`)."""
+    n_in = max(int(n_interior), min(len(P), max(c for c, _ in search.coarse_stages)))
+    head = np.ascontiguousarray(dx_pp[:n_in, :n_in])
+    cand = _candidates(sx.descriptors[P[0]], sy, search.n_starts)
+    stages = search.coarse_stages
+    if search.search_vertices is not None:
+        st, dom = [(c, None) for c, _ in stages], sy.subset(search.search_vertices)
+    else:
+        st, dom = [(c, None if k is None else sy.subset(k)) for c, k in stages], None
+    sig = None
+    if search.signature_weight > 0:
+        c = max(c for c, _ in stages)
+        sig = search.signature_weight * signature_mismatch(sx, sy, P[:c])
+    fwd = _Search(head, sy.distances, cand, st, search.n_extend, dom, search.extend_keep, sig)
+    DY = sy.distances
+
+    def complete(img):
+        img = np.asarray(img, dtype=np.int64)
+        if n_in < len(P):
+            img = np.concatenate([img, anchored_images(DY, img, dx_pp[n_in:, :n_in])])
+        return img
+
+    return fwd, n_in, complete
+
+
+def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int) -> np.ndarray:
+    r"""Working vertex of Y for each working vertex of X from its ``k`` nearest landmarks:
+    :math:`T(v) = \arg\min_w \sum_{l \in N_k(v)} (a^Y_{wl} - a^X_{vl})^2`, with :math:`N_k(v)` the
+    ``k`` landmarks nearest to ``v`` on X (:func:`gromov.dense.anchored_map` over all of them
+    lets the far landmarks, whose distances a cut changes most, pull every point)."""
+    ax, ay = np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64)
+    k = int(min(max(k, 3), ax.shape[1]))
+    near = np.argpartition(ax, k - 1, axis=1)[:, :k]
+    m = np.zeros_like(ax)
+    np.put_along_axis(m, near, 1.0, axis=1)
+    cost = m @ (ay * ay).T
+    cost -= 2.0 * ((m * ax) @ ay.T)
+    return np.argmin(cost, axis=1).astype(np.int64)
+
+
+def _placed(sx, sy, P, img: SurfacePoints, wp: np.ndarray, k: int) -> np.ndarray:
+    """Working vertex of Y for every working vertex of X, placed from the samples and their
+    images (:func:`local_anchored_map`, or :func:`gromov.dense.anchored_map` with ``k = 0``),
+    the samples in the boundary band left out."""
+    from .dense import anchored_map, landmark_distances
+
+    keep = wp >= 0.5 if (wp >= 0.5).sum() >= 3 else np.ones(len(P), dtype=bool)
+    ax = landmark_distances(sx, P[keep])
+    ay = landmark_distances(sy, SurfacePoints(img.face[keep], img.bary[keep]))
+    return local_anchored_map(ax, ay, k) if k else anchored_map(ax, ay)
+
+
+def _covered_back(sx, sy, T, covered_w, covered):
+    """The dense map back from Y's covered input vertices to X: the input vertex of X at the
+    working vertex whose image is nearest (Y's metric); -1 / NaN outside the region."""
+    from .dense import DenseMap
+    from .dense import _at_vertices as faces_at
+
+    cov = np.flatnonzero(covered_w)
+    u = np.full(sy.mesh.n_vertices, -1, dtype=np.int64)
+    if len(cov):
+        u[cov] = np.argmin(sy.distances[np.ix_(cov, T)], axis=1)
+    uu = u[sy.working.source_nearest]   # each input vertex as its nearest working vertex
+    ok = covered & (uu >= 0)
+    n = sy.input.n_vertices
+    face, bary, vertex = np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), np.full(n, -1, dtype=np.int64)
+    v = sx.working.to_source(uu[ok])
+    face[ok], bary[ok] = faces_at(sx.input, v)
+    vertex[ok] = sx.input.input_ids[v]
+    return DenseMap(*(sy.input.per_file_vertex(a, fill=f) for a, f in ((face, -1), (bary, np.nan), (vertex, -1))))
+
+
+def _back_images(sx, sy, Q, T, covered_w):
+    """``(face, bary, vertex)`` on X's input of Y's samples inside the covered region: the
+    working vertex of X whose image is nearest (Y's metric); -1 / NaN outside it."""
+    n = len(Q)
+    face, bary, vertex = np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), np.full(n, -1, dtype=np.int64)
+    inside = covered_w[Q]
+    if inside.any():
+        near = np.argmin(sy.distances[np.ix_(Q[inside], T)], axis=1)
+        f, bb, v = sx.locate(SurfacePoints.at_vertices(sx.mesh, near))
+        face[inside], bary[inside], vertex[inside] = f, bb, v
+    return face, bary, vertex

@@ -1,0 +1,137 @@
+"""Partial matching (gromov.partial, ``match(part, whole, partial=True)``): a part cut from a
+shape is found in that shape, the covered region is the kept one, a permuted whole gives the
+permuted map, and ``partial=False`` is the full match."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+import gromov
+from gromov.match_result import MatchResult
+from gromov.partial import boundary_distance, covered_region, match_partial, sample_weights
+from gromov.perturb import cut
+from gromov.shapes import grid, icosphere
+
+
+@pytest.fixture(scope="module")
+def cat_part(cat_working):
+    """cat0 at about 3,000 vertices (numbered 0..n-1), a plane cut keeping 60% of its area,
+    and the part matched into it."""
+    whole = gromov.Mesh(cat_working.mesh.vertices, cat_working.mesh.faces)
+    p = cut(whole, 0.6, kind="plane", seed=1)
+    part = gromov.Mesh(p.mesh.vertices, p.mesh.faces)
+    r = gromov.match(part, whole, partial=True, dense=True, resolution=None)
+    return whole, part, p.vertex_map, r
+
+
+def _errors(whole, images, truth):
+    """Euclidean distance between the images and the true vertices, ÷ sqrt(area)."""
+    return np.linalg.norm(whole.vertices[images] - whole.vertices[truth], axis=1) / np.sqrt(whole.area)
+
+
+def test_part_maps_to_itself(cat_part):
+    whole, part, truth, r = cat_part
+    assert r.partial and r.x_to_y_dense_vertex.shape == (part.n_vertices,)
+    e = _errors(whole, r.x_to_y_dense_vertex, truth)
+    # every vertex near its own place: the mean within 1% of sqrt(area) (a working mesh's edge
+    # is about 2%), nine in ten exactly on it or its neighbours
+    assert e.mean() < 0.01
+    assert np.mean(e < 0.03) > 0.9
+    samples = _errors(whole, r.x_to_y_vertex, truth[r.x_samples])
+    assert np.median(samples) < 0.01
+
+
+def test_covered_region_is_the_kept_one(cat_part):
+    whole, part, truth, r = cat_part
+    kept = np.zeros(whole.n_vertices, bool)
+    kept[truth] = True
+    covered = r.y_covered
+    iou = (covered & kept).sum() / (covered | kept).sum()
+    assert iou > 0.9
+    # its area: the part's share of the whole (the cut kept 60%), within 5 points
+    assert abs(r.covered_fraction - part.area / whole.area) < 0.05
+    # and nothing far from the kept region: an uncovered vertex of the part's area at most 2 rings off
+    ring2 = kept | (whole.adjacency @ kept.astype(float) > 0)
+    ring2 = ring2 | (whole.adjacency @ ring2.astype(float) > 0)
+    assert not (covered & ~ring2).any()
+
+
+def test_permuted_whole_gives_the_permuted_map(cat_part):
+    whole, part, _, r = cat_part
+    perm = np.random.default_rng(3).permutation(whole.n_vertices)   # new vertex i is old perm[i]
+    inv = np.argsort(perm)
+    faces = inv[whole.faces]
+    permuted = gromov.Mesh(whole.vertices[perm], faces)
+    r2 = gromov.match(part, permuted, partial=True, dense=True, resolution=None)
+    # the same places: old vertex v is new vertex inv[v]
+    moved = np.linalg.norm(permuted.vertices[r2.x_to_y_dense_vertex] - whole.vertices[r.x_to_y_dense_vertex],
+                           axis=1) / np.sqrt(whole.area)
+    assert np.mean(moved < 0.03) > 0.9
+    assert np.array_equal(r2.y_covered, r.y_covered[perm]) or \
+        ((r2.y_covered & r.y_covered[perm]).sum() / (r2.y_covered | r.y_covered[perm]).sum() > 0.9)
+
+
+def test_dense_back_map_only_inside_the_region(cat_part):
+    whole, part, truth, r = cat_part
+    inside = r.y_to_x_dense_vertex >= 0
+    assert np.array_equal(inside, r.y_covered)
+    # a function of the whole carried to the part and back is found where it was
+    values = whole.vertices[:, 0]
+    on_part = r.transfer(values, direction="y_to_x")
+    assert np.median(np.abs(on_part - part.vertices[:, 0])) < 0.02 * np.sqrt(whole.area)
+
+
+def test_partial_false_is_the_full_match():
+    x, y = icosphere(2), icosphere(2, radius=1.2)
+    a = gromov.match(x, y, n_samples=20, resolution=None)
+    b = gromov.match(x, y, n_samples=20, resolution=None, partial=False)
+    for name in ("distance", "relative_distance", "distortion", "n_iter"):
+        assert getattr(a, name) == getattr(b, name)
+    for name in ("x_to_y_face", "x_to_y_bary", "y_to_x_face", "y_to_x_bary", "pair_distortion"):
+        assert np.array_equal(getattr(a, name), getattr(b, name))
+    assert not b.partial and b.y_covered is None and np.isnan(b.covered_fraction)
+
+
+def test_old_results_load_without_the_partial_fields():
+    r = gromov.match(icosphere(1), icosphere(1), n_samples=10, resolution=None)
+    state = {k: v for k, v in r.__dict__.items() if k not in ("partial", "y_covered", "covered_fraction", "x_weight")}
+    old = MatchResult.__new__(MatchResult)
+    old.__dict__.update(state)          # what unpickling a result saved before these fields does
+    back = pickle.loads(pickle.dumps(old))
+    assert back.partial is False and back.y_covered is None and np.isnan(back.covered_fraction)
+    assert back.to_dict()["distance"] == r.distance
+
+
+def test_boundary_weights_on_a_grid():
+    g = grid(11, 11, width=1.0, height=1.0)
+    b = boundary_distance(g)
+    assert b.max() == pytest.approx(0.5, abs=1e-9)     # the centre, five edges of 0.1 from each side
+    assert np.all(b[np.unique(g.boundary_edges.ravel())] == 0)
+    w = sample_weights(b, 0.2)
+    assert w.min() == 0 and w.max() == 1 and sample_weights(b, 0).min() == 1
+    assert np.all(np.isinf(boundary_distance(icosphere(1))))
+
+
+def test_covered_region_closes_small_gaps():
+    g = grid(21, 21, width=2.0, height=2.0)
+    h = g.mean_edge_length
+    every_other = np.flatnonzero((np.arange(g.n_vertices) % 2 == 0) & (g.vertices[:, 0] < 1.0))
+    plain = covered_region(g, every_other, 0.0)
+    closed = covered_region(g, every_other, 0.0, close=2 * h)
+    assert plain.sum() == len(every_other)
+    # the gaps between the images filled, the outline kept within an edge
+    assert closed[g.vertices[:, 0] < 1.0 - 2 * h].all()
+    assert not closed[g.vertices[:, 0] > 1.0 + h].any()
+
+
+def test_partial_options_are_checked():
+    x = icosphere(1)
+    with pytest.raises(ValueError, match="partial=True takes"):
+        gromov.match(x, x, n_samples=10, partial=True, norm="linf")
+    with pytest.raises(ValueError, match="n_samples"):
+        match_partial(x, x, n_samples=2)
+    with pytest.raises(ValueError, match="point cloud"):
+        match_partial(gromov.PointCloud(x.vertices), x, n_samples=10)
