@@ -24,7 +24,13 @@ Methods, per part -> whole pair:
 
 - ``ours``: ``gromov.match(part, whole, dense=True)`` (defaults: diffusion, 100 samples, the
   dense map refined on the input meshes);
-- ``ours_radius``: the same with ``radius = F x`` the part's diameter in the metric (``--radius``,
+- ``ours_partial``: ``gromov.match(part, whole, partial=True, dense=True)`` (:mod:`gromov.partial`:
+  the part's samples embedded into the whole alone, in the geodesic metric, samples near the
+  part's boundary down-weighted; the dense map placed from the samples, not refined), its IoU
+  that of the covered region it reports (``y_covered``), ``iou_images`` that of its images
+  grown by one ring as for the others; with it, per class, the uncut pose matched to the next
+  one both ways, full and partial (``full_vs_partial``: the relative distances and their ratio);
+- ``ours_radius``: the same as ``ours`` with ``radius = F x`` the part's diameter in the metric (``--radius``,
   default 0.7; GMDS then counts only the pairs of samples closer than that; 0: not run);
 - ``pyfm``: pyFM's quick-start, exactly as ``benchmarks/bench_dense.py`` runs it (both meshes
   area-normalised separately, 200 eigenpairs, WKS, a 30x30 map, ZoomOut).
@@ -77,6 +83,7 @@ from gromov.experiments import datasets
 from gromov.experiments.reproduce import reflection_map
 from gromov.gh import ShapeMetric
 from gromov.metrics.diffusion import correspondence_options
+from gromov.partial import BOUNDARY_WIDTH
 from gromov.perturb import CUT_PATCHES, cut
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -84,7 +91,7 @@ from _common import HERE, add_data_argument, write_results  # noqa: E402
 from bench_dense import GROSS, PYFM, at_vertices, pyfm_p2p  # noqa: E402
 
 KEEP = {"plane": (0.4, 0.8), "holes": (0.6, 0.8)}
-METHODS = ("ours", "ours_radius", "pyfm")
+METHODS = ("ours", "ours_radius", "ours_partial", "pyfm")
 #: Bins of a sample's distance to the cut, ÷ the whole's geodesic diameter.
 CUT_BINS = (0.0, 0.05, 0.1, 0.2, np.inf)
 QUICK = {"classes": ["wolf", "centaur"], "per_class": 1}
@@ -124,6 +131,9 @@ class ClassPoses:
             t = time.perf_counter()
             if what == "metric":
                 obj = ShapeMetric(y, "diffusion", metric_options=correspondence_options("diffusion", None))
+                obj.distances
+            elif what == "geodesic":
+                obj = ShapeMetric(y, "geodesic")
                 obj.distances
             elif what == "pyfm":
                 from pyFM.mesh import TriMesh
@@ -240,7 +250,8 @@ def fill_closed(part: gromov.Mesh, truth, source: gromov.Mesh) -> tuple[int, int
     return int(closed), total
 
 
-def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: float, count: int) -> dict | None:
+def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: float, count: int,
+                  methods=METHODS) -> dict | None:
     a, b = poses.poses[k % len(poses.poses)], poses.poses[(k + 1) % len(poses.poses)]
     source, whole = poses.mesh(a), poses.mesh(b)
     name = f"{poses.cls}{a}-{kind}{k}->{poses.cls}{b}"
@@ -263,23 +274,35 @@ def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: flo
     sx = ShapeMetric(part, "diffusion", metric_options=correspondence_options("diffusion", None))
     sx.distances
     t_px = time.perf_counter() - t
-    maps, seconds = {}, {}
-    t = time.perf_counter()
-    r = gromov.match(sx, sy, dense=True)
-    seconds["ours"] = t_px + t_sy + time.perf_counter() - t
-    maps["ours"] = (r.x_to_y_dense_face, r.x_to_y_dense_bary, r.x_to_y_dense_vertex)
-    if radius:
+    maps, seconds, regions = {}, {}, {}
+    r = None
+    if "ours" in methods:
+        t = time.perf_counter()
+        r = gromov.match(sx, sy, dense=True)
+        seconds["ours"] = t_px + t_sy + time.perf_counter() - t
+        maps["ours"] = (r.x_to_y_dense_face, r.x_to_y_dense_bary, r.x_to_y_dense_vertex)
+    if "ours_partial" in methods:
+        syg, t_syg = poses.prepared(b, "geodesic")
+        t = time.perf_counter()
+        sxg = ShapeMetric(part, "geodesic")
+        rp = gromov.match(sxg, syg, partial=True, dense=True)
+        seconds["ours_partial"] = t_syg + time.perf_counter() - t
+        maps["ours_partial"] = (rp.x_to_y_dense_face, rp.x_to_y_dense_bary, rp.x_to_y_dense_vertex)
+        regions["ours_partial"] = rp.y_covered
+        row["partial"] = {"relative_distance": float(rp.relative_distance), "covered_fraction": float(rp.covered_fraction),
+                          "true_fraction": float(part.area / source.area), "orientation": float(rp.orientation)}
+    if radius and "ours" in methods:
         row["radius"] = radius * sx.diameter
         t = time.perf_counter()
         rr = gromov.match(sx, sy, dense=True, radius=row["radius"])
         seconds["ours_radius"] = t_px + t_sy + time.perf_counter() - t
         maps["ours_radius"] = (rr.x_to_y_dense_face, rr.x_to_y_dense_bary, rr.x_to_y_dense_vertex)
-    t = time.perf_counter()
-    ref, t_ref = poses.prepared(b, "pyfm")
-    t = time.perf_counter()
-    p2p = pyfm_p2p(part, whole, ref)
-    seconds["pyfm"] = t_ref + time.perf_counter() - t
-    maps["pyfm"] = (*at_vertices(whole, p2p), p2p)
+    if "pyfm" in methods:
+        ref, t_ref = poses.prepared(b, "pyfm")
+        t = time.perf_counter()
+        p2p = pyfm_p2p(part, whole, ref)
+        seconds["pyfm"] = t_ref + time.perf_counter() - t
+        maps["pyfm"] = (*at_vertices(whole, p2p), p2p)
 
     true_region = grow(whole, truth)
     row["iou_whole_shape"] = float(true_region.mean())   # the IoU of a map that claims the whole shape
@@ -294,15 +317,19 @@ def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: flo
                        "mean_direct": float(direct.mean()), "median_direct": float(np.median(direct)),
                        "per_diameter": float(errors.mean() / cap), "branch": e.branch,
                        "off_piece": float(np.mean(~np.isfinite(e.direct))), "seconds": seconds[method],
-                       "iou": iou(grow(whole, vertex), true_region), "errors": errors, "direct": direct}
+                       "iou": iou(regions.get(method, grow(whole, vertex)), true_region),
+                       "iou_images": iou(grow(whole, vertex), true_region), "errors": errors, "direct": direct}
         diameter = e.diameter
     row["evaluation_seconds"] = time.perf_counter() - t
     row["whole_diameter"] = diameter
     row["to_diameter"] = float(np.sqrt(whole.area) / diameter)
     d_cut = cut_distance(part, truth, source)
+    if r is None:   # the diagnostics are those of ``ours``
+        d_cut = None
     try:
-        row["diagnostics"] = diagnose(r, sx, sy, poses.prepared(a, "metric")[0], truth, d_cut, diameter,
-                                      true_region)
+        if d_cut is not None:
+            row["diagnostics"] = diagnose(r, sx, sy, poses.prepared(a, "metric")[0], truth, d_cut, diameter,
+                                          true_region)
     except Exception as exc:   # a diagnostic must not stop the run: said, and left out
         print(f"  {name}: no diagnostics: {type(exc).__name__}: {exc}", flush=True)
     said = "   ".join(f"{m} {row[m]['mean'] * 100:6.2f} ({row[m]['seconds']:5.1f} s, IoU {row[m]['iou']:.2f})"
@@ -332,7 +359,7 @@ def add_baseline(path: str, data: str) -> None:
             if p.params["kept"] != row["kept"]:
                 raise RuntimeError(f"{row['pair']}: the cut is not the one measured")
             row["iou_whole_shape"] = float(grow(poses.mesh(b), p.vertex_map).mean())
-    for kind, summary in res["summary"].items():
+    for kind, summary in ((k, v) for k, v in res["summary"].items() if k in KEEP):
         summary["iou_whole_shape"] = float(np.mean([r["iou_whole_shape"] for r in res["pairs"] if r["kind"] == kind]))
         print(f"{kind}: IoU of claiming the whole shape {summary['iou_whole_shape']:.3f}")
     Path(path).write_text(json.dumps(res, indent=1))
@@ -357,6 +384,7 @@ def summarise(title: str, rows: list[dict]) -> dict:
              "pair_median_of_means": 100 * float(np.median([r[method]["mean"] for r in have])),
              "gross": int(sum(r[method]["per_diameter"] > GROSS for r in have)), "n": len(have),
              "iou": float(np.mean([r[method]["iou"] for r in have])),
+             "iou_images": float(np.mean([r[method]["iou_images"] for r in have])),
              "seconds_per_pair": float(np.mean([r[method]["seconds"] for r in have]))}
         out[method] = s
         print(f"  {method:<14}{s['mean']:>7.2f}{s['median']:>8.2f}{s['mean_direct']:>8.2f}"
@@ -411,6 +439,25 @@ def summarise(title: str, rows: list[dict]) -> dict:
     return out
 
 
+def full_vs_partial(poses: ClassPoses) -> dict:
+    """The class's uncut pose matched to the next one, full and ``partial=True`` (geodesic, both
+    prepared once): what partial matching reports for two whole shapes."""
+    a, b = poses.poses[0], poses.poses[1 % len(poses.poses)]
+    sx, sy = poses.prepared(a, "geodesic")[0], poses.prepared(b, "geodesic")[0]
+    t = time.perf_counter()
+    full = gromov.match(sx, sy, "geodesic")
+    t_full = time.perf_counter() - t
+    t = time.perf_counter()
+    part = gromov.match(sx, sy, "geodesic", partial=True)
+    t_part = time.perf_counter() - t
+    out = {"pair": f"{poses.cls}{a}->{poses.cls}{b}", "full": float(full.relative_distance),
+           "partial": float(part.relative_distance), "ratio": float(part.relative_distance / full.relative_distance),
+           "covered_fraction": float(part.covered_fraction), "full_seconds": t_full, "partial_seconds": t_part}
+    print(f"  {out['pair']} uncut: relative distance full {out['full']:.4f}, partial {out['partial']:.4f} "
+          f"(ratio {out['ratio']:.3f}), covered {out['covered_fraction']:.2f}", flush=True)
+    return out
+
+
 def _rows_for_json(rows: list[dict]) -> list[dict]:
     return [{k: ({m: v for m, v in d.items() if m not in ("errors", "direct")} if k in METHODS else d)
              for k, d in r.items()} for r in rows]
@@ -428,6 +475,9 @@ def main(argv=None):
     ap.add_argument("--radius", type=float, default=0.7,
                     help="ours_radius: radius = this x the part's diameter in the metric (0: not run)")
     ap.add_argument("--count", type=int, default=CUT_PATCHES, help="holes: disks per part")
+    ap.add_argument("--methods", default="ours,ours_partial,pyfm",
+                    help=f"comma-separated, of {','.join(METHODS)} (ours_radius: with --radius; default "
+                         "ours,ours_partial,pyfm)")
     ap.add_argument("--quick", action="store_true",
                     help=f"{','.join(QUICK['classes'])}, {QUICK['per_class']} part per class and kind")
     ap.add_argument("--json", default=str(HERE / "results" / "partial.json"))
@@ -442,18 +492,23 @@ def main(argv=None):
                tosca.classes if args.classes is None else [c for c in args.classes.split(",") if c])
     per_class = QUICK["per_class"] if args.quick else args.per_class
     kinds = [k for k in args.kinds.split(",") if k]
-    unknown = sorted(set(classes) - set(tosca.classes)) + sorted(set(kinds) - set(KEEP))
+    methods = [m for m in args.methods.split(",") if m]
+    unknown = (sorted(set(classes) - set(tosca.classes)) + sorted(set(kinds) - set(KEEP))
+               + sorted(set(methods) - set(METHODS)))
     if unknown:
-        ap.error(f"unknown classes or kinds {unknown}")
+        ap.error(f"unknown classes, kinds or methods {unknown}")
     res = {"gromov": {"version": gromov.__version__,
                       "match": {"metric": "diffusion", "dense": "input", "n_samples": 100,
-                                "radius_fraction_of_part_diameter": args.radius or None}},
+                                "radius_fraction_of_part_diameter": args.radius or None},
+                      "partial": {"metric": "geodesic", "dense": "placed", "n_samples": 100,
+                                  "boundary_width": BOUNDARY_WIDTH}},
            "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS,
-           "run": {"classes": classes, "per_class": per_class, "kinds": kinds, "vertices": args.vertices,
+           "run": {"classes": classes, "per_class": per_class, "kinds": kinds, "methods": methods,
+                   "vertices": args.vertices,
                    "keep": {k: keeps(k, per_class) for k in kinds}, "holes_count": args.count,
                    "command": "benchmarks/bench_partial.py " + " ".join(sys.argv[1:] if argv is None else argv)}}
     t0 = time.perf_counter()
-    rows = []
+    rows, uncut = [], []
     for cls in classes:
         t = time.perf_counter()
         poses = ClassPoses(tosca, cls, args.vertices)
@@ -461,15 +516,25 @@ def main(argv=None):
               f"({time.perf_counter() - t:.1f} s)", flush=True)
         for kind in kinds:
             for k, keep in enumerate(keeps(kind, per_class)):
-                row = evaluate_pair(poses, kind, k, keep, args.radius, args.count)
+                row = evaluate_pair(poses, kind, k, keep, args.radius, args.count, methods)
                 if row is not None:
                     rows.append(row)
+        if "ours_partial" in methods:
+            uncut.append(full_vs_partial(poses))
         # the pairs so far, in case the run is stopped (the summary comes at the end)
-        write_results(args.json, {**res, "pairs": _rows_for_json(rows), "complete": False,
+        write_results(args.json, {**res, "pairs": _rows_for_json(rows), "full_vs_partial": uncut, "complete": False,
                                   "total_seconds": time.perf_counter() - t0})
     res["summary"] = {kind: summarise(f"TOSCA parts, {kind}", [r for r in rows if r["kind"] == kind])
                       for kind in kinds}
     res["pairs"] = _rows_for_json(rows)
+    if uncut:
+        ratios = np.array([u["ratio"] for u in uncut])
+        res["full_vs_partial"] = uncut
+        res["summary"]["full_vs_partial"] = {"pairs": len(uncut), "ratio_min": float(ratios.min()),
+                                             "ratio_max": float(ratios.max()),
+                                             "within_10_percent": int(np.sum(np.abs(ratios - 1) <= 0.1))}
+        print(f"\nuncut poses, partial / full relative distance: {ratios.min():.3f} - {ratios.max():.3f} "
+              f"({res['summary']['full_vs_partial']['within_10_percent']} of {len(uncut)} within 10%)")
     res["total_seconds"], res["complete"] = time.perf_counter() - t0, True
     print(f"\ntotal {res['total_seconds']:.0f} s")
     write_results(args.json, res)
