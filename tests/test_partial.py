@@ -13,7 +13,7 @@ import gromov
 from gromov.match_result import MatchResult
 from gromov.partial import boundary_distance, covered_region, match_partial, sample_weights
 from gromov.perturb import cut
-from gromov.shapes import grid, icosphere
+from gromov.shapes import grid, icosphere, torus
 
 
 @pytest.fixture(scope="module")
@@ -135,3 +135,27 @@ def test_partial_options_are_checked():
         match_partial(x, x, n_samples=2)
     with pytest.raises(ValueError, match="point cloud"):
         match_partial(gromov.PointCloud(x.vertices), x, n_samples=10)
+
+
+def test_cli_partial(tmp_path, capsys):
+    import json
+
+    from gromov.cli import main
+
+    whole = torus(32, 16)
+    p = cut(whole, 0.6, kind="plane", seed=0)
+    gromov.save(whole, tmp_path / "whole.off")
+    gromov.save(p.mesh, tmp_path / "part.off")
+    out = tmp_path / "m.npz"
+    argv = ["match", str(tmp_path / "part.off"), str(tmp_path / "whole.off"), "--partial", "--samples", "20",
+            "--dense", "placed", "--out", str(out), "--json", "-q"]
+    assert main(argv) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["partial"] is True and got["metric"] == "geodesic" and 0.3 < got["covered_fraction"] <= 1.0
+    arrays = np.load(out)
+    assert arrays["y_covered"].shape == (whole.n_vertices,) and arrays["x_weight"].shape == (20,)
+    assert arrays["x_to_y_dense_vertex"].shape == (p.mesh.n_vertices,)
+    assert main(argv[:-2] + ["-q"]) == 0
+    assert "as a part of" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(argv[:-3] + ["--norm", "linf"])
