@@ -56,7 +56,7 @@ together as ``seconds_both_wall``) and the single-process time per shape (descri
 shape and per pair (gromov: its metrics' and its pairs' wall times times ``--jobs``).
 
 ``--cache DIR`` writes each shape's descriptors (``DIR/descriptors/COLLECTION/NAME.npz``) and each
-gromov matrix (``DIR/gromov-*.npz``) there, for ``benchmarks/studies/recognition_defaults.py``;
+gromov matrix (``DIR/gromov-*.npz``, ``DIR/combined-*.npz``) there, for ``benchmarks/studies/recognition_defaults.py``;
 nothing is read back here: every run measures its own times.
 
 Resources, measured on 2 cores shared with other jobs (load average 2-9): the descriptors of all 280
@@ -328,7 +328,7 @@ def combined_matrix(files, args) -> dict:
     S = g.spectral
     miss = np.isnan(D)
     D[miss] = np.nanmax(D) + 1.0 + S[miss] / (S.max() + 1e-300)
-    return {"combined": D, "complete": not miss.any(), "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
+    return {"combined": D, "spectral": S, "trimmed": g.trimmed, "complete": not miss.any(), "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
             "seconds": wall, "seconds_prepare": g.seconds_prepare, "seconds_match": g.seconds_match}
 
 
@@ -446,6 +446,10 @@ def main(argv=None) -> None:
             csub = class_subset(labels, per, args.seed)
             mc = len(csub)
             g = combined_matrix([files[i] for i in csub], args)
+            if cache is not None:
+                np.savez(cache / f"combined-{name}-pc{per}-s{args.combined_samples}-c{args.candidates or 0}"
+                                 f"-seed{args.seed}.npz", files=np.array([files[i].name for i in csub]),
+                         combined=g["combined"], spectral=g["spectral"], trimmed=g["trimmed"])
             row = (f"gromov --units area --samples {args.combined_samples} --rank-by combined"
                    + (f" --candidates {args.candidates}" if args.candidates else ""))
             sc = scores(g["combined"], labels[csub])
