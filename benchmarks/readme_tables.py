@@ -183,8 +183,23 @@ def anchors_table() -> str:
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
         *collection_rows(load("collection_retrieval.json"), load("collection_resume.json"),
                          load("collection_dask.json")),
+        recognition_row(load("recognition_watertight_two_stage.json")),
     ]
     return "\n".join(rows)
+
+
+def recognition_row(r: dict) -> str:
+    """bench_recognition.py on the whole watertight collection: gromov's combined ranking in two
+    stages beside Shape-DNA and the pooled HKS, as a row of the anchors table."""
+    c = r["collections"]["watertight"]
+    rows = c["rows"]
+    name, ours = next((k, v) for k, v in rows.items() if k.startswith("gromov --units area"))
+    dna, hks = rows["shapedna"], rows["hks"]
+    return (f"| recognition, SHREC'07 watertight, {c['shapes']} shapes of {len(c['classes'])} classes: "
+            f"nearest neighbour; first tier; time on 2 cores | {_pct(ours['nn'])}; {_pct(ours['ft'])}; "
+            f"{_minutes(ours['seconds'])} (`{name[len('gromov '):]}`: {ours['pairs_matched']:,} of {c['shapes'] * (c['shapes'] - 1) // 2:,} pairs) | "
+            f"{_pct(dna['nn'])}; {_pct(dna['ft'])}; {_minutes(dna['seconds'])} (Shape-DNA); {_pct(hks['nn'])}; "
+            f"{_pct(hks['ft'])}; {_minutes(hks['seconds'])} (pooled HKS) |")
 
 
 def _minutes(s: float) -> str:
