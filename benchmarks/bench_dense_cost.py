@@ -3,24 +3,37 @@
 Run:  .venv/bin/python benchmarks/bench_dense_cost.py [--data DIR] [--repeat 3] [--json OUT]
 
 ``gromov.match(cat0, cat1)`` with ``dense=False``, ``"placed"``, ``"zoomout"`` (refined on the
-working meshes) and ``True`` (refined on the input meshes), each the fastest of ``--repeat`` runs
-after one warm-up; prints the seconds and what the dense maps add. The input refinement needs
+working meshes) and ``True`` (refined on the input meshes), each the fastest (and the median) of
+``--repeat`` runs after one warm-up; prints the seconds and what the dense maps add, and which
+factorisation the input eigensolve used ("cholmod" with ``cholespy`` installed, else
+"superlu"). The input refinement needs
 each input mesh's Laplace-Beltrami eigenpairs, computed once per shape: the default row
 computes them afresh on every run (a new pair of shapes, as ``gromov match`` on two files),
 the row "input eigenpairs cached" reuses them (a shape matched again).
+
+Then the two eigendecompositions alone (100 eigenpairs each), the ways measured taking turns
+in each of ``--repeat`` rounds: scipy's ``eigsh(L, k, M, sigma)`` as it comes (SuperLU,
+2k + 1 Lanczos vectors, BLAS threads as configured), and the shift-invert solve of
+:func:`gromov.dense.laplace_beltrami_basis` (3k/2 + 1 vectors, one BLAS thread) with SuperLU
+and with CHOLMOD; medians, and how far their eigenvalues are from the first's.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
+import scipy.sparse as sp
+
 import gromov
+from gromov.dense import INPUT_K, _shift_invert_eigsh, _spd_solver
 from gromov.gh import ShapeMetric
-from gromov.metrics.diffusion import correspondence_options
+from gromov.metrics.diffusion import _eigsh_top, correspondence_options, cotan_laplacian
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -41,7 +54,9 @@ def main(argv=None) -> int:
     sx, sy = (ShapeMetric(gromov.load(tosca / f"cat{p}.off.gz"), metric_options=correspondence_options("diffusion", None))
               for p in (0, 1))
     gromov.match(sx, sy, dense=True)   # metrics, caches and compiled kernels
-    seconds = {}
+    factorisation = _spd_solver(sp.identity(3, format="csr"))[1]
+    print(f"  input eigensolve: ARPACK shift-invert, {factorisation} factorisation")
+    seconds, medians = {}, {}
     for name, dense in MODES.items():
         runs = []
         for _ in range(args.repeat):
@@ -52,14 +67,52 @@ def main(argv=None) -> int:
             t = time.perf_counter()
             gromov.match(sx, sy, dense=dense)
             runs.append(time.perf_counter() - t)
-        seconds[name] = min(runs)
-        print(f"  {name:16s} {seconds[name]:.3f} s")
+        seconds[name], medians[name] = min(runs), statistics.median(runs)
+        print(f"  {name:16s} {seconds[name]:.3f} s (median {medians[name]:.3f} s)")
     added = seconds["dense (default)"] - seconds["sparse"]
     print(f"  the dense maps add {added:.3f} s ({seconds['placed'] - seconds['sparse']:.3f} s placed only, "
           f"{seconds['input eigenpairs cached'] - seconds['sparse']:.3f} s with the eigenpairs cached)")
-    write_results(args.json, {"pair": "cat0 -> cat1", "seconds": seconds, "added_s": added,
-                              "cpus": os.cpu_count(), "load_average": os.getloadavg()})
+    added_median = medians["dense (default)"] - medians["sparse"]
+    print(f"  medians: the dense maps add {added_median:.3f} s")
+    eigensolve = eigensolves([s.input for s in (sx, sy)], args.repeat)
+    write_results(args.json, {"pair": "cat0 -> cat1", "factorisation": factorisation, "repeat": args.repeat,
+                              "seconds": seconds, "added_s": added, "median_seconds": medians,
+                              "added_median_s": added_median, "eigensolve": eigensolve, "cpus": os.cpu_count(),
+                              "load_average": os.getloadavg()})
     return 0
+
+
+def eigensolves(meshes, repeat: int, k: int = INPUT_K) -> dict:
+    """Seconds for the eigendecompositions of all ``meshes`` (a median of ``repeat`` rounds,
+    the ways taking turns), and each way's largest eigenvalue difference from scipy's default,
+    relative to the largest eigenvalue."""
+    problems = []
+    for m in meshes:
+        L, M = cotan_laplacian(m)
+        problems.append((L, M, -1e-2 / m.area))
+    ways = {"scipy eigsh (SuperLU, 2k+1 vectors, threaded BLAS)": lambda L, M, s: _eigsh_top(L, k, M=M, sigma=s),
+            "SuperLU, 3k/2+1 vectors, 1 BLAS thread": lambda L, M, s: _shift_invert_eigsh(L, M, k, sigma=s,
+                                                                                           method="superlu")}
+    if _spd_solver(sp.identity(3, format="csr"))[1] == "cholmod":
+        ways["CHOLMOD, 3k/2+1 vectors, 1 BLAS thread (default)"] = (
+            lambda L, M, s: _shift_invert_eigsh(L, M, k, sigma=s, method="cholmod"))
+    runs = {name: [] for name in ways}
+    eigenvalues = {}
+    for r in range(repeat):
+        for name in (list(ways) if r % 2 == 0 else list(ways)[::-1]):
+            t = time.perf_counter()
+            lam = [np.sort(ways[name](*p)[0]) for p in problems]
+            runs[name].append(time.perf_counter() - t)
+            eigenvalues[name] = lam
+    first = eigenvalues[next(iter(ways))]
+    out = {"meshes": len(meshes), "k": k, "rounds": repeat, "median_s": {}, "max_eigenvalue_rel_diff": {}}
+    for name in ways:
+        out["median_s"][name] = statistics.median(runs[name])
+        out["max_eigenvalue_rel_diff"][name] = max(float(np.abs(a - b).max() / b.max())
+                                                   for a, b in zip(eigenvalues[name], first))
+        print(f"  eigensolve, {name}: {out['median_s'][name]:.3f} s (median), eigenvalues within "
+              f"{out['max_eigenvalue_rel_diff'][name]:.1e}")
+    return out
 
 
 if __name__ == "__main__":

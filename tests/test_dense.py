@@ -367,3 +367,50 @@ def test_small_pieces_move_with_the_surface_under_a_similarity():
     r = gromov.match(X, Y, n_samples=50, dense=True)
     np.testing.assert_array_equal(r.x_to_y_dense_vertex, rank)
     np.testing.assert_array_equal(r.y_to_x_dense_vertex, perm)
+
+
+@pytest.mark.parametrize("factorisation", ["cholmod", "superlu"])
+def test_input_eigenpairs_are_the_dense_generalised_eigenpairs(monkeypatch, factorisation):
+    """``laplace_beltrami_basis`` gives the first eigenpairs of ``L phi = lambda M phi`` that a
+    dense generalised eigensolver gives, M-orthonormal, with the Cholesky factor (CHOLMOD) and
+    with SuperLU for the shift-invert operator."""
+    import sys
+
+    import scipy.linalg
+    import scipy.sparse as sp
+
+    from gromov.dense import _spd_solver, laplace_beltrami_basis
+    from gromov.metrics.diffusion import cotan_laplacian
+
+    if factorisation == "cholmod":
+        pytest.importorskip("cholespy")
+    else:
+        monkeypatch.setitem(sys.modules, "cholespy", None)   # import fails: the scipy path
+    assert _spd_solver(sp.identity(3, format="csr"))[1] == factorisation
+    m = bumpy_torus()
+    L, M = cotan_laplacian(m)
+    lam_ref, phi_ref = scipy.linalg.eigh(L.toarray(), M.toarray(), subset_by_index=[0, 39])
+    phi, mass = laplace_beltrami_basis(m, 40)
+    assert phi.shape == (m.n_vertices, 40)
+    np.testing.assert_allclose(mass, M.diagonal())
+    np.testing.assert_allclose(phi.T @ (mass[:, None] * phi), np.eye(40), atol=1e-10)
+    lam = np.einsum("ij,ij->j", phi, L @ phi)
+    np.testing.assert_allclose(lam, lam_ref, rtol=1e-9, atol=1e-12)
+    # the same eigenvectors up to sign (the torus's eigenvalues are simple)
+    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->j", phi_ref, mass[:, None] * phi)), 1.0, atol=1e-8)
+
+
+def test_spd_solver_falls_back_to_lu_where_cholesky_fails():
+    """A matrix that is not positive definite gets SuperLU, and the solve is right either way."""
+    import scipy.sparse as sp
+
+    from gromov.dense import _spd_solver
+
+    spd = sp.csr_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]]))
+    indefinite = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))
+    solve, name = _spd_solver(indefinite)
+    assert name == "superlu"
+    np.testing.assert_allclose(indefinite @ solve(np.array([1.0, 2.0])), [1.0, 2.0])
+    solve, _ = _spd_solver(spd)
+    b = np.arange(6.0).reshape(3, 2)
+    np.testing.assert_allclose(spd @ solve(b), b)
