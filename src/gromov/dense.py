@@ -38,7 +38,7 @@ import numpy as np
 
 from numba import njit
 
-from ._arrays import readonly
+from ._arrays import one_blas_thread, readonly
 from ._project import project_among
 from .resolution import gather
 
@@ -401,14 +401,15 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     ptr, ids = sy._input_rings[1]
     left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
     T0 = T[left_out]
-    for k in range(min(k_start, k_end), k_end + 1, step):
-        C = phx[:, :k].T @ (mx[:, None] * phy[T, :k])
-        if orthogonal:
-            u, _, vt = np.linalg.svd(C)
-            C = u @ vt
-        a = np.ascontiguousarray(phx[:, :k] @ C)
-        T = _nearest_in_rings(*(readonly(b) for b in (a, np.ascontiguousarray(phy[:, :k]), T, ptr, ids)))
-        T[left_out] = T0
+    with one_blas_thread():   # products of n x k by k x k: a second thread costs more than it gains
+        for k in range(min(k_start, k_end), k_end + 1, step):
+            C = phx[:, :k].T @ (mx[:, None] * phy[T, :k])
+            if orthogonal:
+                u, _, vt = np.linalg.svd(C)
+                C = u @ vt
+            a = np.ascontiguousarray(phx[:, :k] @ C)
+            T = _nearest_in_rings(*(readonly(b) for b in (a, np.ascontiguousarray(phy[:, :k]), T, ptr, ids)))
+            T[left_out] = T0
     return T
 
 
