@@ -75,6 +75,11 @@ ORIENTATION_TOL = 0.1
 #: ... or by its composition with the whole's reflection within this much, as
 #: :data:`gromov.gh.FLIP_TOL`.
 FLIP_TOL = 0.25
+#: A direct map is weighed against clearly direct alternatives (orientation agreement above 1/2
+#: + ``DIRECT_MARGIN``) within ``TURN_TOL`` of its distortion that keep the smoothed mean
+#: curvature better by ``TURN_MARGIN`` (a body turned half about its long axis), as
+#: :func:`gromov.match` does.
+DIRECT_MARGIN, TURN_TOL, TURN_MARGIN = 0.15, 0.1, 0.1
 #: The dense map places each vertex by its distances to this many nearest samples
 #: (:func:`local_anchored_map`).
 N_LOCAL = 16
@@ -210,6 +215,11 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         Measure X at Y's diffusion time (heat kernel); False: each at its own.
     n_refine : int, default N_REFINE
         GMDS from this many of the search's best starts; the lowest final distortion is kept.
+    interior_only : bool, default True
+        Run the initial search on the samples of weight at least 1/2 (the others placed after).
+    n_local : int, default N_LOCAL
+        The dense map places each vertex by its distances to this many nearest samples (0: to
+        all of them, :func:`gromov.dense.anchored_map`).
 
     Returns
     -------
@@ -287,15 +297,18 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         x_to_y_bary=xy_bary, x_to_y_vertex=xy_vertex, y_samples=sy.working.to_input_ids(Q),
         y_to_x_face=yx_face, y_to_x_bary=yx_bary, y_to_x_vertex=yx_vertex, n_iter=int(n_iter),
         converged=bool(converged), seconds=time.perf_counter() - t0, pair_distortion=residual,
-        history=np.asarray(history), orientation=orientation, partial=True, y_covered=y_covered, covered_fraction=fraction,
-        x_weight=wp, **extra)
+        history=np.asarray(history), orientation=orientation, partial=True, y_covered=y_covered,
+        covered_fraction=fraction, x_weight=wp, **extra)
 
 
-def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int, n_interior: int):
+def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int, n_interior: int,
+                       turn: bool = True, more_starts: bool = True):
     """The initial search in one direction, then one-sided GMDS from its ``n_refine`` best
-    starts and from the best orientation-preserving one: the lowest final distortion, or a
-    direct map within ``ORIENTATION_TOL`` of it when that one is mirrored. Returns ``(images,
-    n_iter, converged, history, orientation agreement)``."""
+    starts: the lowest final distortion. When that map is mirrored (orientation agreement at
+    most 1/2), GMDS also from the best orientation-preserving starts and from the mirrored map
+    composed with Y's reflection (:meth:`ShapeMetric.symmetry`), and a direct map within
+    ``ORIENTATION_TOL`` (``FLIP_TOL`` for the composition) of its distortion replaces it.
+    Returns ``(images, n_iter, converged, history, orientation agreement)``."""
     from .orientation import orientation_agreements
 
     fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior)
@@ -319,8 +332,11 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
             fits.append((history[-1], img, n_iter, converged, history, o))
         return fits
 
-    starts = [complete(img) for img, _ in fwd.extend_plain(polish_all=True)[0]]
-    starts = sorted(starts, key=score)[:max(1, int(n_refine))]
+    starts_all = [complete(img) for img, _ in fwd.extend_plain(polish_all=True)[0]]
+    if oriented and more_starts:   # and more orientation-preserving ones, half as many per stage
+        starts_all += [complete(img) for img, _ in fwd.extend_preserving(
+            _orient(sx, sy, P[:n_in], dx_pp[:n_in, :n_in]), -(-fwd.per_stage // 2))]
+    starts = sorted(starts_all, key=score)[:max(1, int(n_refine))]
     fits = refine(starts)
     best = min(fits, key=lambda f: f[0])
     if oriented and not best[5] > 0.5:
@@ -337,8 +353,53 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
         direct = [f for f, t in zip(fits, tol) if f[5] > 0.5 and f[0] <= (1.0 + t) ** 2 * best[0]]
         if direct:
             best = min(direct, key=lambda f: f[0])
+    if oriented and best[5] > 0.5 and turn:
+        best = _prefer_curvature(sx, sy, P, starts_all, score, refine, best)
     logger.debug("partial fits: %s", [(f[0], f[5]) for f in fits])
     return best[1], best[2], best[3], best[4], best[5]
+
+
+def part_curvature(sx: ShapeMetric, sy: ShapeMetric) -> np.ndarray:
+    """The smoothed mean curvature of the part ``sx`` in the whole's units: smoothed for the same
+    time and scaled by the same sqrt(area) as ``sy.curvature`` (:func:`gromov.curvature.mean_curvature`
+    measures each shape in its own area)."""
+    from .curvature import CURVATURE_SCALE, mean_curvature
+
+    ratio = sy.mesh.area / sx.mesh.area
+    return mean_curvature(sx.mesh, sx.normals[0], scale=CURVATURE_SCALE * ratio) * np.sqrt(ratio)
+
+
+def _prefer_curvature(sx, sy, P, starts, score, refine, best):
+    """A direct map against its half turn (:func:`gromov.gh._prefer_curvature` for one side):
+    among the clearly direct starts (agreement above 1/2 + ``DIRECT_MARGIN``) within
+    ``TURN_TOL`` of the best start's distortion, the one whose images keep the curvature best;
+    GMDS from it, kept when still clearly direct, within ``TURN_TOL`` of the map's distortion
+    and better by ``TURN_MARGIN`` in curvature mismatch (the median over the part's samples)."""
+    hx, hy = part_curvature(sx, sy)[P], sy.curvature
+    faces = sy.mesh.faces
+
+    def mismatch(images):
+        return float(np.median(np.abs(hx - hy[images])))
+
+    m_best = mismatch(best[1].vertex(faces))
+    s0 = min(score(img) for img in starts)
+    agree = _orient(sx, sy, P, sx.distances[np.ix_(P, P)])(np.stack(starts))
+    near = [img for img, a in zip(starts, agree) if a > 0.5 + DIRECT_MARGIN and score(img) <= (1 + TURN_TOL) ** 2 * s0]
+    logger.debug("partial: curvature mismatch %.3g, %d direct starts near (agreements %s, scores %s of %.3g)",
+                 m_best, len(near), np.round(agree, 2), [round(score(i) / s0, 2) for i in starts], s0)
+    if not near:
+        return best
+    cand = min(near, key=mismatch)
+    logger.debug("partial: the best of them %.3g", mismatch(cand))
+    if not mismatch(cand) < (1.0 - TURN_MARGIN) * m_best:
+        return best
+    alt = refine([cand])[0]
+    if (alt[5] > 0.5 + DIRECT_MARGIN and alt[0] <= (1 + TURN_TOL) ** 2 * best[0]
+            and mismatch(alt[1].vertex(faces)) < (1.0 - TURN_MARGIN) * m_best):
+        logger.debug("partial: a half turn replaced (curvature mismatch %.3g -> %.3g)", m_best,
+                     mismatch(alt[1].vertex(faces)))
+        return alt
+    return best
 
 
 def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int):
