@@ -183,9 +183,23 @@ def anchors_table() -> str:
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
         *collection_rows(load("collection_retrieval.json"), load("collection_resume.json"),
                          load("collection_dask.json")),
+        partial_row(load("partial_mode.json"), load("partial.json")),
         recognition_row(load("recognition_watertight_two_stage.json")),
     ]
     return "\n".join(rows)
+
+
+def partial_row(mode: dict, old: dict) -> str:
+    """bench_partial.py: ``match(part, whole, partial=True)`` (``mode``) beside pyFM (``old``, the
+    same seeded parts), as a row of the anchors table."""
+    m, o = mode["summary"], old["summary"]
+    n = sum(m[k]["pairs"] for k in ("plane", "holes"))
+    ours = "; ".join(f"{m[k]['ours_partial']['mean']:.2f} / {m[k]['ours_partial']['median']:.2f}" for k in ("plane", "holes"))
+    pyfm = "; ".join(f"{o[k]['pyfm']['mean']:.2f} / {o[k]['pyfm']['median']:.2f}" for k in ("plane", "holes"))
+    gross = sum(m[k]["ours_partial"]["gross"] for k in ("plane", "holes"))
+    gross_pyfm = sum(o[k]["pyfm"]["gross"] for k in ("plane", "holes"))
+    return (f"| a part matched into another pose, {n} TOSCA parts (plane cuts; holes): dense error × 100 / √area, "
+            f"mean / median; gross pairs | {ours}; {gross} of {n} (`partial=True`) | {pyfm}; {gross_pyfm} of {n} (pyFM) |")
 
 
 def recognition_row(r: dict) -> str:
