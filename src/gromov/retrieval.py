@@ -592,10 +592,9 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     spectral = weight = None
     keys = _keys(bounds, gaps, prune, slack)
     if combine or n_first is not None:
-        from .spectrum import SPECTRUM_WEIGHT, spectrum
+        from .spectrum import SPECTRUM_WEIGHT, combined, signature_distance, spectrum
 
-        qs = spectrum(query_shape)
-        spectral = np.array([_spectral_distance(qs, c.spectrum()) for c in candidates])
+        spectral = signature_distance(spectrum(query_shape), np.array([c.spectrum() for c in candidates]))
         weight = SPECTRUM_WEIGHT
     if combine:   # S^w B^(1 - w) <= S^w G^(1 - w) wherever B <= G
         keys = np.where(np.isfinite(keys), spectral**weight * np.maximum(keys, 0.0) ** (1.0 - weight), keys)
@@ -611,7 +610,7 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         for (_, j) in pairs:
             r = _match(query_shape, candidates[j].shape(), metric, **options)
             v = _ranked(r, rank_by)
-            out.append(spectral[j] ** weight * v ** (1.0 - weight) if combine else v)
+            out.append(float(combined(spectral[j], v, weight)) if combine else v)
             bar.update(1)
         return out
 
@@ -676,12 +675,6 @@ def _spectrum_of(shape) -> np.ndarray:
     from .spectrum import spectrum
 
     return spectrum(shape)
-
-
-def _spectral_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Euclidean distance between two spectral signatures, over the entries both have."""
-    ok = np.isfinite(a) & np.isfinite(b)
-    return float(np.sqrt(((a[ok] - b[ok]) ** 2).sum()))
 
 
 def _prepared(s, metric, shape_args) -> ShapeMetric:

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SPECTRUM_K", "SPECTRUM_WEIGHT", "combined", "shape_dna", "spectral_distances", "spectrum"]
+__all__ = ["SPECTRUM_K", "SPECTRUM_WEIGHT", "combined", "shape_dna", "signature_distance", "spectral_distances",
+           "spectrum"]
 
 #: Eigenvalues in a shape's signature (Reuter et al. 2006 compare the first 50 or so).
 SPECTRUM_K = 50
@@ -73,15 +74,19 @@ def spectrum(shape, k: int = SPECTRUM_K) -> np.ndarray:
     return cache[k]
 
 
+def signature_distance(a: np.ndarray, b) -> np.ndarray | float:
+    """Euclidean distance between the signature ``a`` and ``b`` (one signature, or one per row),
+    over the entries both have (a tiny shape has fewer eigenvalues)."""
+    a, B = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    ok = np.isfinite(a) & np.isfinite(B)
+    d = np.sqrt(np.where(ok, (B - a) ** 2, 0.0).sum(-1))
+    return float(d) if d.ndim == 0 else d
+
+
 def spectral_distances(shapes, k: int = SPECTRUM_K) -> np.ndarray:
-    """``(n, n)`` Euclidean distances between the shapes' :func:`spectrum` (over the entries both
-    have: a tiny shape has fewer eigenvalues)."""
+    """``(n, n)`` :func:`signature_distance` between the shapes' :func:`spectrum`."""
     X = np.array([spectrum(s, k) for s in shapes])
-    n = len(X)
-    D = np.zeros((n, n))
-    for i in range(n):
-        ok = np.isfinite(X[i])[None, :] & np.isfinite(X)
-        D[i] = np.sqrt(np.where(ok, (X - X[i]) ** 2, 0.0).sum(1))
+    D = np.array([signature_distance(x, X) for x in X]).reshape(len(X), len(X))
     return 0.5 * (D + D.T)
 
 
