@@ -209,8 +209,9 @@ def signatures_of(path: str, seed: int = 0, resolution: int = 3000) -> dict:
     return out
 
 
-def all_signatures(files, folder: Path, jobs: int, seed: int) -> list[dict]:
-    """:func:`signatures_of` of each file, read from ``folder`` where computed before."""
+def _cached(compute, files, folder: Path, jobs: int, seed: int) -> list[dict]:
+    """``compute(path, seed)`` of each file in ``jobs`` processes, each kept as
+    ``folder/NAME.npz`` and read from there where computed before."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = [folder / f.name.replace(".off.gz", ".npz") for f in files]
     todo = [i for i, p in enumerate(paths) if not p.exists()]
@@ -218,23 +219,19 @@ def all_signatures(files, folder: Path, jobs: int, seed: int) -> list[dict]:
         import multiprocessing as mp
 
         with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("fork")) as pool:
-            for i, sig in zip(todo, pool.map(signatures_of, [str(files[i]) for i in todo], [seed] * len(todo))):
-                np.savez(paths[i], **sig)
+            for i, out in zip(todo, pool.map(compute, [str(files[i]) for i in todo], [seed] * len(todo))):
+                np.savez(paths[i], **out)
     return [dict(np.load(p)) for p in paths]
+
+
+def all_signatures(files, folder: Path, jobs: int, seed: int) -> list[dict]:
+    """:func:`signatures_of` of each file, read from ``folder`` where computed before."""
+    return _cached(signatures_of, files, folder, jobs, seed)
 
 
 def input_descriptors(files, folder: Path, jobs: int, seed: int) -> list[dict]:
     """``bench_recognition.py``'s descriptors of each file, from its cache where there."""
-    folder.mkdir(parents=True, exist_ok=True)
-    paths = [folder / f.name.replace(".off.gz", ".npz") for f in files]
-    todo = [i for i, p in enumerate(paths) if not p.exists()]
-    if todo:
-        import multiprocessing as mp
-
-        with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("fork")) as pool:
-            for i, d in zip(todo, pool.map(descriptors_of, [str(files[i]) for i in todo], [seed] * len(todo))):
-                np.savez(paths[i], **d)
-    return [dict(np.load(p)) for p in paths]
+    return _cached(descriptors_of, files, folder, jobs, seed)
 
 
 def w1(X: np.ndarray) -> np.ndarray:
