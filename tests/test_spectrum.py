@@ -148,5 +148,8 @@ def test_search_a_store_in_two_stages(tmp_path, capsys):
     st = ShapeStore(store)
     kept = [e for e in st.entries() if st.extra(e.key, f"{SPECTRUM_NAME}:k={SPECTRUM_K}") is not None]
     assert len(kept) == 4   # every candidate's signature kept for the next search
+    # and no candidate's bound invariants: the first stage needs only the signatures
+    assert not any(st.extra(e.key, name) is not None for e in st.entries()
+                   for name in ("retrieval-bound-1:n_samples=15:seed=0",))
     assert main(argv) == 0
     assert json.loads(capsys.readouterr().out)["neighbors"] == res["neighbors"]

@@ -87,8 +87,9 @@ from .gh import RANK_LOG_FLOOR, _match, _upgrade_options, check_rank_residual, c
 from .gmds import EmbeddedDistance, norm_value, parse_norm, trimmed_rms
 from .shape_metric import ShapeMetric
 
-__all__ = ["BOUND_NAME", "SPECTRUM_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs", "NearestResult", "Neighbor",
-           "ShapeBound", "knn_pairs", "nearest", "pair_bound", "profile_gap", "shape_bound"]
+__all__ = ["BOUND_NAME", "SPECTRUM_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs",
+           "NearestResult", "Neighbor", "ShapeBound", "knn_pairs", "nearest", "pair_bound", "profile_gap",
+           "shape_bound"]
 
 logger = logging.getLogger(__name__)
 
@@ -446,7 +447,8 @@ class NearestResult:
         times ``slack`` or their triangle estimate times ``triangle_slack``) exceeded the k-th
         value found.
     bounds, gaps : ndarray (m,)
-        Each candidate's lower bound (:func:`pair_bound`) and profile gap (:func:`profile_gap`).
+        Each candidate's lower bound (:func:`pair_bound`) and profile gap (:func:`profile_gap`);
+        NaN in a two-stage search (``candidates``), which computes neither.
     values : dict
         ``{candidate index: ranked value}`` of the candidates matched.
     exact : bool
@@ -582,11 +584,14 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         for (i, j), v in known.items():
             triangle.add(i, j, v, estimates=False)
     n_known = 0 if triangle is None else sum(len(v) for v in triangle.known.values()) // 2
-    qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
-    kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
-    cbs = [c.bound() for c in candidates]
-    bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
-    gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
+    if n_first is None:
+        qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
+        kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
+        cbs = [c.bound() for c in candidates]
+        bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
+        gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
+    else:   # a two-stage search needs no bound: no candidate's invariants read or computed
+        bounds = gaps = np.full(len(candidates), np.nan)
     from tqdm import tqdm
 
     spectral = weight = None
