@@ -60,16 +60,17 @@ def spectrum(shape, k: int = SPECTRUM_K) -> np.ndarray:
         raise ValueError(f"k must be >= 1, got {k}")
     cache = shape.__dict__.setdefault("_spectrum", {})
     if k not in cache:
-        from .metrics.diffusion import _eigsh_top, _laplacian
+        from .dense import _shift_invert_eigsh
+        from .metrics.diffusion import POINT_CLOUD_NEIGHBORS, _laplacian
 
         mesh = shape.mesh
-        _, L, M, area = _laplacian(mesh, "cotan", "a spectral signature", 20)
+        _, L, M, area = _laplacian(mesh, "cotan", "a spectral signature", POINT_CLOUD_NEIGHBORS)
         n = mesh.n_vertices
         comps = int(getattr(mesh, "n_components", 1))
         want = min(n - 2, k + comps)
         if want < 1:
             raise ValueError(f"a spectral signature needs at least 3 working vertices, got {n}")
-        lam, _ = _eigsh_top(L, want, M=M, sigma=-1e-2 / max(area, 1e-300))
+        lam, _ = _shift_invert_eigsh(L, M, want, sigma=-1e-2 / max(area, 1e-300))   # as the dense maps
         cache[k] = shape_dna(np.maximum(lam, 0.0), area, k)
     return cache[k]
 
