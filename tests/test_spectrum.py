@@ -20,6 +20,11 @@ def test_the_sphere_spectrum_over_weyl():
     dna = spectrum(s, 8)
     exact = np.array([2, 2, 2, 6, 6, 6, 6, 6]) / np.arange(1, 9)
     np.testing.assert_allclose(dna, exact, rtol=0.01)
+    # a point cloud of the same vertices: the robust Laplacian's spectrum
+    from gromov.mesh import PointCloud
+
+    cloud = ShapeMetric(PointCloud(icosphere(4).vertices), "diffusion", resolution=None)
+    np.testing.assert_allclose(spectrum(cloud, 8), exact, rtol=0.02)
 
 
 def test_the_signature_ignores_scale_rotation_and_vertex_order():
