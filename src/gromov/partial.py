@@ -127,7 +127,7 @@ def boundary_distance(mesh: Mesh) -> np.ndarray:
     bv = np.unique(mesh.boundary_edges.ravel())
     if not len(bv):
         return np.full(mesh.n_vertices, np.inf)
-    return csgraph.dijkstra(_edge_graph(mesh), directed=False, indices=bv, min_only=True)
+    return csgraph.dijkstra(mesh.adjacency, directed=False, indices=bv, min_only=True)
 
 
 def sample_weights(distance_to_boundary: np.ndarray, width: float) -> np.ndarray:
@@ -167,20 +167,12 @@ def _one_sided_gmds(sy: ShapeMetric, dx_pp: np.ndarray, W: np.ndarray, img: Surf
     return SurfacePoints(pf, pb), n_iter, converged, history
 
 
-def _edge_graph(mesh: Mesh):
-    import scipy.sparse as sp
-
-    e = mesh.edges
-    w = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
-    return sp.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(mesh.n_vertices,) * 2).tocsr()
-
-
 def covered_region(mesh: Mesh, images: np.ndarray, radius: float, close: float = 0.0) -> np.ndarray:
     """Mask of the vertices of ``mesh`` within ``radius`` (along its edges) of an image
     vertex, after a closing of width ``close``: the region grown by ``radius + close``, then
     the vertices within ``close`` of what is left outside removed (gaps narrower than about
     ``2 close`` between images filled, the outline kept)."""
-    g = _edge_graph(mesh)
+    g = mesh.adjacency
     grow = radius + close
     d = csgraph.dijkstra(g, directed=False, indices=np.unique(images), min_only=True, limit=grow * 1.000001)
     region = d <= grow
