@@ -285,11 +285,20 @@ def worker_threads(client, wait: float = WORKER_WAIT_S) -> dict[str, int]:
     except TimeoutError:
         raise ValueError(f"no Dask worker joined the scheduler {client.scheduler.address} "
                          f"in {wait:g} s") from None
-    try:
-        info = client.scheduler_info(n_workers=-1)   # all of them (some versions list 5 by default)
-    except TypeError:   # versions that list all and take no argument
-        info = client.scheduler_info()
-    workers = info["workers"]
+    import time
+
+    deadline = time.monotonic() + wait
+    while True:   # the client's view of the scheduler can lag the worker that joined
+        try:
+            info = client.scheduler_info(n_workers=-1)   # all of them (some versions list 5 by default)
+        except TypeError:   # versions that list all and take no argument
+            info = client.scheduler_info()
+        workers = info["workers"]
+        if workers or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    if not workers:
+        raise ValueError(f"the Dask scheduler {client.scheduler.address} lists no worker")
     return {addr: int(w.get("nthreads", 1)) for addr, w in sorted(workers.items())}
 
 
