@@ -297,6 +297,27 @@ def test_input_zoomout_keeps_the_identity_and_brings_back_a_shaken_map():
     assert np.mean(back == ids) > 0.95
 
 
+def test_input_zoomout_brings_back_a_region_placed_far_away():
+    """A patch of the map sent to the far side of the shape, beyond any ring search, comes back
+    by the steps that search all of Y; without them it stays."""
+    from gromov.dense import input_zoomout
+    from gromov.gh import ShapeMetric
+
+    s = ShapeMetric(bumpy_torus(), "diffusion", resolution=300)
+    v = s.input.vertices
+    ids = np.arange(s.input.n_vertices)
+    d = np.linalg.norm(v - v[0], axis=1)
+    patch = d < np.quantile(d, 0.06)
+    far = np.argsort(np.linalg.norm(v - (-v[0]), axis=1))[:patch.sum()]
+    wrong = ids.copy()
+    wrong[patch] = far
+    back = input_zoomout(s, s, wrong, k_end=40)
+    assert np.mean(back[patch] == ids[patch]) > 0.9
+    assert np.mean(back == ids) > 0.95
+    stuck = input_zoomout(s, s, wrong, k_end=40, global_k=0)
+    assert np.mean(stuck[patch] == ids[patch]) < 0.5
+
+
 def test_ring_neighbourhoods_grow_by_one_edge_per_ring():
     from gromov.dense import ring_neighbourhoods
 

@@ -58,9 +58,10 @@ REFINEMENTS = ("input", "zoomout", None)
 DENSE_REFINE: str | None = "input"
 #: ZoomOut refinement on the working meshes: eigenfunctions from, to, step.
 ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
-#: Refinement on the input meshes: eigenfunctions from, to, step, and the rings of the input
-#: mesh around the current image that each step searches.
-INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS = 20, 100, 4, 2
+#: Refinement on the input meshes: eigenfunctions from, to, step; the rings of the input mesh
+#: around the current image that each step searches; the steps with at most INPUT_GLOBAL
+#: eigenfunctions search all of Y (docs/design/dense.md).
+INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS, INPUT_GLOBAL = 20, 140, 4, 2, 32
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,16 +203,18 @@ def zoomout(sx, sy, T: np.ndarray, *, k_start: int = ZOOMOUT_START, k_end: int =
     r"""Spectral upsampling of a vertex map X -> Y (ZoomOut; Melzi et al., SIGGRAPH Asia 2019).
 
     For k from ``k_start`` to ``k_end``: the functional map
-    :math:`C = \Phi_X^\top M_X \Phi_Y[T]` on the first k eigenfunctions, then
-    :math:`T(v) = \arg\min_w \lVert \Phi_X(v) C - \Phi_Y(w) \rVert`.
+    :math:`C = \Phi_X^\top M_X \Phi_Y[T]` on the first k eigenfunctions (it carries
+    coefficients on Y to coefficients on X), then each vertex of X to the vertex of Y whose
+    delta function C carries closest to its own,
+    :math:`T(v) = \arg\min_w \lVert \Phi_X(v) - \Phi_Y(w) C^\top \rVert`.
     """
     phx, mx = _basis(sx, k_end)
     phy, _ = _basis(sy, k_end)
     k_end = min(k_end, phx.shape[1], phy.shape[1])
     for k in range(min(k_start, k_end), k_end + 1, step):
         C = phx[:, :k].T @ (mx[:, None] * phy[T, :k])
-        a = (phx[:, :k] @ C).astype(np.float32)
-        b = phy[:, :k].astype(np.float32)
+        a = phx[:, :k].astype(np.float32)
+        b = (phy[:, :k] @ C.T).astype(np.float32)
         cost = a @ b.T            # nearest row of b: argmin |b|^2 - 2 a.b, by products
         cost *= -2.0
         cost += (b * b).sum(1)[None, :]
@@ -354,26 +357,30 @@ def _nearest_in_rings(a, b, T, ptr, ids):
 
 
 def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: int = INPUT_K,
-                  step: int = INPUT_STEP, rings: int = INPUT_RINGS, orthogonal: bool = True) -> np.ndarray:
-    r"""Refine a vertex map between the *input* meshes of X and Y spectrally, locally.
+                  step: int = INPUT_STEP, rings: int = INPUT_RINGS, global_k: int = INPUT_GLOBAL,
+                  orthogonal: bool = False) -> np.ndarray:
+    r"""Refine a vertex map between the *input* meshes of X and Y spectrally.
 
     ZoomOut (Melzi et al., SIGGRAPH Asia 2019) on the Laplace-Beltrami eigenfunctions
     :math:`\Phi` of each input mesh (:func:`laplace_beltrami_basis`): for k from ``k_start`` to
-    ``k_end`` by ``step``, the functional map of the current map on the first k of them,
-    made orthogonal (the closest orthogonal matrix, from its SVD, as the ICP refinement of
-    Ovsjanikov et al., "Functional maps", SIGGRAPH 2012, §6.1, does for a near-isometry),
+    ``k_end`` by ``step``, the functional map of the current map on the first k of them, which
+    carries coefficients on Y to coefficients on X,
 
-    .. math:: C = U V^\top, \quad U \Sigma V^\top = \Phi_X^\top M_X \Phi_Y[T],
+    .. math:: C = \Phi_X^\top M_X \Phi_Y[T],
 
-    then the nearest point of Y in the spectral embedding,
+    then each vertex of X goes to the vertex of Y whose delta function C carries closest to its
+    own (the point-to-point recovery of ZoomOut, §4),
 
-    .. math:: T(v) = \arg\min_{w \in N(T(v))} \lVert \Phi_X(v)\, C - \Phi_Y(w) \rVert,
+    .. math:: T(v) = \arg\min_{w} \lVert \Phi_X(v) - \Phi_Y(w)\, C^\top \rVert .
 
-    searched only in the ``rings``-ring :math:`N(u)` of the current image u on Y's input mesh.
-    Searching near the current image, not over all of Y, keeps the map in the basin the robust
-    placement found (no jump to a symmetric part, nor across a change of topology) and costs
-    ``O(n k)`` per step. Without the orthogonal projection the functional map of an imprecise
-    map shrinks its high frequencies, and the nearest points drift toward a smoothed map.
+    Each vertex's image is searched in the ``rings``-ring :math:`N(T(v))` of its current image
+    on Y's input mesh: the high frequencies sharpen the map without letting it jump to a
+    symmetric part or across a change of topology, at ``O(n k)`` per step. While k is at most
+    ``global_k`` the vertices of Y's working mesh, spread over all of Y, are searched too (a
+    k-d tree), and the nearer of the two is kept: a functional map of so few, smooth
+    eigenfunctions is made by the whole of a mostly right map, and it moves a region the robust
+    placement put wrong (one hand on the other's place) back to where the rest of the map says
+    it belongs; the later local steps then refine it.
 
     Parameters
     ----------
@@ -381,14 +388,19 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
         Both meshes.
     T : ndarray (n_X,) of int
         Vertex of Y's input mesh (index, not file id) for each vertex of X's input mesh.
-    k_start, k_end, step, rings : int, defaults INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS
-    orthogonal : bool, default True
-        Project each functional map onto the orthogonal matrices (False: plain ZoomOut).
+    k_start, k_end, step, rings, global_k : int, defaults INPUT_START, INPUT_K, INPUT_STEP,
+        INPUT_RINGS, INPUT_GLOBAL
+    orthogonal : bool, default False
+        Replace each functional map by the closest orthogonal matrix :math:`U V^\top` of its SVD
+        (the ICP step of Ovsjanikov et al., "Functional maps", SIGGRAPH 2012, §6.1); measured
+        less precise on TOSCA (``docs/design/dense.md``).
 
     Returns
     -------
     ndarray (n_X,) of int64
     """
+    from scipy.spatial import cKDTree
+
     T = np.asarray(T, dtype=np.int64)
     if T.shape != (sx.input.n_vertices,):
         raise ValueError(f"T must have one vertex of Y per input vertex of X, shape "
@@ -400,6 +412,8 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
         sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
     ptr, ids = sy._input_rings[1]
     left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
+    kept_x = np.flatnonzero(~left_out)
+    spread = sy.working.vertex_ids        # Y's working vertices, spread over its kept pieces
     T0 = T[left_out]
     with one_blas_thread():   # products of n x k by k x k: a second thread costs more than it gains
         for k in range(min(k_start, k_end), k_end + 1, step):
@@ -407,8 +421,14 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
             if orthogonal:
                 u, _, vt = np.linalg.svd(C)
                 C = u @ vt
-            a = np.ascontiguousarray(phx[:, :k] @ C)
-            T = _nearest_in_rings(*(readonly(b) for b in (a, np.ascontiguousarray(phy[:, :k]), T, ptr, ids)))
+            a = np.ascontiguousarray(phx[:, :k])
+            b = np.ascontiguousarray(phy[:, :k] @ C.T)
+            T = _nearest_in_rings(*(readonly(c) for c in (a, b, T, ptr, ids)))
+            if k <= global_k:    # or a far vertex of Y's working mesh, where that is nearer
+                d_far, far = cKDTree(b[spread]).query(a[kept_x], workers=1)
+                here = ((a[kept_x] - b[T[kept_x]]) ** 2).sum(axis=1)
+                move = d_far ** 2 < here
+                T[kept_x[move]] = spread[far[move]]
             T[left_out] = T0
     return T
 
