@@ -7,7 +7,7 @@ built-in exception that fits it (``ValueError``, ``FileNotFoundError``...), so
 
 from __future__ import annotations
 
-__all__ = ["GromovError", "MeshError", "MeshFormatError", "MetricError", "GromovWarning"]
+__all__ = ["GromovError", "GromovWarning", "MeshError", "MeshFormatError", "MetricError", "SmallPartWarning"]
 
 
 class GromovError(Exception):
@@ -31,3 +31,9 @@ class MetricError(GromovError, ValueError):
 
 class GromovWarning(UserWarning):
     """Something was repaired or approximated; the result is still usable."""
+
+
+class SmallPartWarning(GromovWarning):
+    """A part given to partial matching holds a small share of the whole's area
+    (:data:`gromov.partial.SMALL_PART`): it gets a map and a distance, but where it lies on the
+    whole is unreliable, and a small part fits almost anywhere with a low distance."""

@@ -30,8 +30,10 @@ part, the second the whole, and
 
 The region of the whole the part covers is read off the dense map: the whole's vertices within
 one edge length (along the whole's surface) of the image of a part vertex. Its share of the
-whole's area is reported with the distance. The measurements behind these choices are in
-docs/design/partial.md.
+whole's area is reported with the distance. A part below :data:`SMALL_PART` of the whole's
+area is matched all the same, with a :class:`~gromov.errors.SmallPartWarning`.
+:func:`partial_matrix` matches every part into every whole, for ranking. The measurements
+behind these choices are in docs/design/partial.md.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ from __future__ import annotations
 import logging
 import os
 import time
+import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import csgraph
@@ -46,7 +50,7 @@ from scipy.sparse import csgraph
 from ._arrays import one_blas_thread
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
-from .errors import MetricError
+from .errors import GromovWarning, MetricError, SmallPartWarning
 from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
 from .mesh import Mesh, as_shape
@@ -54,8 +58,8 @@ from .metrics.diffusion import correspondence_options
 from .search import SearchOptions, _candidates, _orient, _Search, anchored_images, signature_mismatch
 from .shape_metric import ShapeMetric
 
-__all__ = ["match_partial", "in_whole_metric", "boundary_distance", "sample_weights", "covered_region",
-           "local_anchored_map", "PARTIAL_METRIC", "BOUNDARY_WIDTH"]
+__all__ = ["BOUNDARY_WIDTH", "PARTIAL_METRIC", "SMALL_PART", "PartialMatrix", "boundary_distance", "covered_region",
+           "in_whole_metric", "local_anchored_map", "match_partial", "partial_matrix", "sample_weights"]
 
 logger = logging.getLogger(__name__)
 
@@ -87,6 +91,11 @@ N_LOCAL = 16
 #: the image of a part vertex, after a closing of ``COVER_CLOSE`` edge lengths
 #: (:func:`covered_region`).
 COVER_RADIUS, COVER_CLOSE = 1.0, 2.0
+#: :func:`match_partial` warns (:class:`~gromov.errors.SmallPartWarning`) when the part's area is
+#: below this fraction of the whole's: the parts measured hold 45-75% of it, and below a quarter
+#: more than half of even a round part lies in the down-weighted band along its boundary
+#: (docs/design/partial.md).
+SMALL_PART = 0.25
 
 
 def _heat(s: ShapeMetric):
@@ -233,6 +242,11 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     for name, s in (("X", sx), ("Y", sy)):
         if n_samples > s.mesh.n_vertices:
             raise ValueError(f"n_samples={n_samples} exceeds the {s.mesh.n_vertices} working vertices of {name}")
+    share = area_ratio(sx, sy)
+    if share < SMALL_PART:
+        warnings.warn(f"the part keeps only {share:.1%} of the whole's area; its placement on the whole is "
+                      f"unreliable below {SMALL_PART:.0%} (and a small part fits almost anywhere with a low "
+                      "distance)", SmallPartWarning, stacklevel=2)
     if same_time:
         sx = in_whole_metric(sx, sy)
     # samples of the part, the interior ones first (the coarse stages place the first ones)
@@ -291,6 +305,193 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         converged=bool(converged), seconds=time.perf_counter() - t0, pair_distortion=residual,
         history=np.asarray(history), orientation=orientation, partial=True, y_covered=y_covered,
         covered_fraction=fraction, x_weight=wp, **extra)
+
+
+def area_ratio(sx: ShapeMetric, sy: ShapeMetric) -> float:
+    """The part's area over the whole's (their input meshes)."""
+    return float(sx.input.area / sy.input.area)
+
+
+@dataclass(frozen=True, eq=False)
+class PartialMatrix:
+    """Every part matched into every whole: :func:`partial_matrix`.
+
+    Attributes
+    ----------
+    distance : ndarray (n_parts, n_wholes)
+        ``match_partial(parts[i], wholes[j]).distance``: row ``i`` a part, column ``j`` a whole.
+        Not symmetric. With ``same`` its diagonal is 0 (each shape is a part of itself).
+    relative_distance : ndarray (n_parts, n_wholes)
+        ``distance`` ÷ the whole's diameter.
+    covered_fraction : ndarray (n_parts, n_wholes)
+        The share of the whole's area the part covers (1 on the diagonal with ``same``).
+    area_ratio : ndarray (n_parts, n_wholes)
+        The part's area over the whole's (input meshes); below :data:`SMALL_PART` the
+        placement is unreliable and a low distance says little.
+    same : bool
+        The parts are the wholes (``partial_matrix(shapes)``): the diagonal is never nearest.
+    parts, wholes : list of str
+        Their names: the files, where given as paths, else ``"part i"`` / ``"whole j"``.
+    metric : str
+    n_samples : int
+    seconds : float
+        Preparing the shapes and matching the pairs.
+    """
+
+    distance: np.ndarray
+    relative_distance: np.ndarray
+    covered_fraction: np.ndarray
+    area_ratio: np.ndarray
+    same: bool
+    parts: list
+    wholes: list
+    metric: str
+    n_samples: int
+    seconds: float
+
+    @property
+    def nearest(self) -> np.ndarray:
+        """``(n_parts,)`` int: each part's nearest whole by ``distance`` (another shape with ``same``)."""
+        d = np.where(np.isnan(self.distance), np.inf, self.distance)
+        if self.same:
+            d = d + np.diag(np.full(len(d), np.inf))
+        return np.argmin(d, axis=1)
+
+    @property
+    def small(self) -> np.ndarray:
+        """``(n_parts, n_wholes)`` bool: pairs whose part holds less than :data:`SMALL_PART` of the
+        whole's area (the diagonal left out with ``same``)."""
+        m = self.area_ratio < SMALL_PART
+        if self.same:
+            np.fill_diagonal(m, False)
+        return m
+
+
+def _names(shapes: list, what: str) -> list[str]:
+    return [os.fspath(s) if isinstance(s, (str, os.PathLike)) else f"{what} {i}" for i, s in enumerate(shapes)]
+
+
+def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, seed: int = 0,
+                   resolution: int | None = DEFAULT_RESOLUTION, metric_options: dict | None = None,
+                   names: list | None = None, progress: bool = False, **match_options) -> PartialMatrix:
+    r"""Each part matched into each whole (:func:`match_partial`), for ranking wholes by part.
+
+    :math:`D_{ij} = ` ``match_partial(parts[i], wholes[j]).distance``, the half weighted RMS
+    of the one-sided residuals of part ``i`` in whole ``j``. It is not symmetric: a part fits
+    into its whole, not the whole into the part. Each shape is prepared once (its metric in
+    the correspondence's options) and every ordered pair is matched, one after the other; no
+    pair is pruned. Each part's nearest whole is :math:`\arg\min_j D_{ij}`
+    (:attr:`PartialMatrix.nearest`); read it with :attr:`PartialMatrix.covered_fraction` and
+    :attr:`PartialMatrix.area_ratio` beside it -- a small part fits almost anywhere with a low
+    distance. The pairs whose part holds less than :data:`SMALL_PART` of the whole's area are
+    named in one :class:`~gromov.errors.SmallPartWarning` (not one per pair).
+
+    Parameters
+    ----------
+    parts : sequence of meshes, paths or ShapeMetric
+        The parts (rows).
+    wholes : sequence of meshes, paths or ShapeMetric, optional
+        The wholes (columns), each also as a function of no arguments that returns it (called
+        when its column is matched, and let go after: a store's entries read one at a time).
+        None: ``parts`` against each other (``same``), ``n (n - 1)`` ordered pairs, the
+        diagonal 0 with a covered fraction and an area ratio of 1. A whole that is a point
+        cloud is left out: its column is NaN (a GromovWarning says so).
+    metric, n_samples, seed, resolution, metric_options
+        As :func:`match_partial` (a ShapeMetric must be in ``metric``).
+    names : list of str, optional
+        The wholes' names, or with ``wholes=None`` the shapes' (default: the paths, else
+        ``"whole j"`` / ``"shape i"``), in the warnings and :attr:`PartialMatrix.wholes`.
+    progress : bool, default False
+        A progress bar (tqdm) on stderr.
+    **match_options
+        Passed to :func:`match_partial` (``search``, ``boundary``...; not ``dense``).
+
+    Returns
+    -------
+    PartialMatrix
+
+    Examples
+    --------
+    >>> m = partial_matrix(["cat0_part.off", "dog3_part.off"], ["cat1.off", "dog4.off"])  # doctest: +SKIP
+    >>> m.nearest, m.covered_fraction                                                    # doctest: +SKIP
+    """
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    if "dense" in match_options:
+        raise ValueError("partial_matrix keeps no maps: dense is not taken")
+    same = wholes is None
+    parts = list(parts)
+    wholes = parts if same else list(wholes)
+    if len(parts) < (2 if same else 1) or not wholes:
+        raise ValueError(f"partial_matrix needs a part and a whole (two shapes without wholes), got "
+                         f"{len(parts)} part(s) and {0 if same else len(wholes)} whole(s)")
+    options = correspondence_options(metric, metric_options)
+    if same:
+        names_p = names_w = _names(parts, "shape")
+    else:
+        names_p, names_w = _names(parts, "part"), _names(wholes, "whole")
+    if names is not None:
+        if len(names) != len(wholes):
+            what = "shape" if same else "whole"
+            raise ValueError(f"names needs one name per {what} ({len(wholes)}), got {len(names)}")
+        names_w = [str(x) for x in names]
+        names_p = names_w if same else names_p
+    sp = [_prepare(s, metric, resolution, options, n) for s, n in zip(parts, names_p)]
+    shape = (len(parts), len(wholes))
+    dist, rel, cover, ratio = (np.full(shape, np.nan) for _ in range(4))
+    if same:
+        for a in (dist, rel):
+            np.fill_diagonal(a, 0.0)
+        for a in (cover, ratio):
+            np.fill_diagonal(a, 1.0)
+    small, clouds = [], []
+    n_pairs = shape[0] * shape[1] - (shape[0] if same else 0)
+    with tqdm(total=n_pairs, desc=f"{metric} partial matches", disable=not progress, leave=False) as bar:
+        for j in range(shape[1]):   # one whole at a time: a whole given by a function is let go after its column
+            if same:
+                whole = sp[j]
+            else:
+                w = wholes[j]() if callable(wholes[j]) else wholes[j]
+                whole = _prepare(w, metric, resolution, options, names_w[j])
+            if not whole.has_faces:   # (a part that is one is refused by match_partial)
+                clouds.append(names_w[j])
+                bar.update(shape[0] - (1 if same else 0))
+                continue
+            for i in range(shape[0]):
+                if same and i == j:
+                    continue
+                if sp[i].has_faces:
+                    ratio[i, j] = area_ratio(sp[i], whole)
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    try:
+                        r = match_partial(sp[i], whole, metric, n_samples=n_samples, seed=seed, **match_options)
+                    except ValueError as exc:   # say which pair
+                        exc.args = (f"{names_p[i]} as a part of {names_w[j]}: {exc}",) + exc.args[1:]
+                        raise
+                for w in caught:   # the small parts said once, below; the others passed on
+                    if issubclass(w.category, SmallPartWarning):
+                        small.append((i, j))
+                    else:
+                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+                dist[i, j], rel[i, j], cover[i, j] = r.distance, r.relative_distance, r.covered_fraction
+                logger.info("%s as a part of %s: %.6g (covers %.1f%%)", names_p[i], names_w[j], r.distance,
+                            100 * r.covered_fraction)
+                bar.update(1)
+            del whole
+    if clouds:
+        warnings.warn(f"{len(clouds)} whole(s) left out (NaN): partial matching needs triangle meshes, and "
+                      f"{', '.join(clouds[:5])}{' ...' if len(clouds) > 5 else ''} are point clouds", GromovWarning,
+                      stacklevel=2)
+    if small:
+        listed = "; ".join(f"{names_p[i]} in {names_w[j]} ({ratio[i, j]:.1%})" for i, j in small[:5])
+        more = f" and {len(small) - 5} more" if len(small) > 5 else ""
+        warnings.warn(f"{len(small)} of {n_pairs} pairs: the part keeps less than {SMALL_PART:.0%} of the "
+                      f"whole's area, where its placement is unreliable: {listed}{more}", SmallPartWarning,
+                      stacklevel=2)
+    return PartialMatrix(dist, rel, cover, ratio, same, names_p, names_w, metric, int(n_samples),
+                         time.perf_counter() - t0)
 
 
 def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int, n_interior: int,

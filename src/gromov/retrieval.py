@@ -79,6 +79,7 @@ import logging
 import numbers
 import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -87,9 +88,12 @@ from .gh import RANK_LOG_FLOOR, _match, _upgrade_options, check_rank_residual, c
 from .gmds import EmbeddedDistance, norm_value, parse_norm, trimmed_rms
 from .shape_metric import ShapeMetric
 
+if TYPE_CHECKING:
+    from .partial import PartialMatrix
+
 __all__ = ["BOUND_NAME", "SPECTRUM_NAME", "PROFILE_SLACK", "PRUNE_MODES", "TRIANGLE_SLACK", "KnnPairs",
-           "NearestResult", "Neighbor", "ShapeBound", "knn_pairs", "nearest", "pair_bound", "profile_gap",
-           "shape_bound"]
+           "NearestResult", "Neighbor", "ShapeBound", "knn_pairs", "nearest", "nearest_wholes", "pair_bound",
+           "profile_gap", "shape_bound"]
 
 logger = logging.getLogger(__name__)
 
@@ -457,6 +461,9 @@ class NearestResult:
     known_pairs : int
         Values between candidates known for the triangle estimates (recorded in the store, or
         given in ``known``); 0 when the estimates are off.
+    partial : PartialMatrix or None
+        :func:`nearest_wholes`: the query matched as a part into every candidate (one row), with
+        the covered fractions and area ratios.
     """
 
     neighbors: list
@@ -468,13 +475,23 @@ class NearestResult:
     exact: bool = True
     rank_by: str = "trimmed"
     known_pairs: int = 0
+    partial: PartialMatrix | None = None
 
     def to_dict(self) -> dict:
         """The JSON of ``gromov search --json``: ``neighbors`` (``file``, ``distance``, nearest
-        first), ``full_matches``, ``skipped``, ``exact``, ``ranked_by`` and ``known_pairs``."""
-        return {"neighbors": [{"file": n.name, "distance": n.distance} for n in self.neighbors],
-                "full_matches": self.full_matches, "skipped": self.skipped, "exact": self.exact,
-                "ranked_by": self.rank_by, "known_pairs": self.known_pairs}
+        first), ``full_matches``, ``skipped``, ``exact``, ``ranked_by`` and ``known_pairs``;
+        with ``partial`` each neighbour's ``relative_distance``, ``covered_fraction`` and
+        ``area_ratio`` too."""
+        neighbors = [{"file": n.name, "distance": n.distance} for n in self.neighbors]
+        if self.partial is not None:
+            m = self.partial
+            for x, n in zip(neighbors, self.neighbors):
+                x.update(relative_distance=float(m.relative_distance[0, n.index]),
+                         covered_fraction=float(m.covered_fraction[0, n.index]),
+                         area_ratio=float(m.area_ratio[0, n.index]))
+        return {"neighbors": neighbors, "full_matches": self.full_matches, "skipped": self.skipped,
+                "exact": self.exact, "ranked_by": self.rank_by, "known_pairs": self.known_pairs,
+                **({} if self.partial is None else {"partial": True})}
 
 
 def _ranked(result, rank_by: str) -> float:
@@ -631,6 +648,113 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
                          {j: v for (_, j), v in values.items()},
                          n_first is None and (prune == "bound" or prune == "none"),
                          "combined" if combine else rank_by, n_known)
+
+
+def nearest_wholes(query, shapes, k: int = 5, metric: str | None = None, *, n_samples: int = 100, seed: int = 0,
+                   resolution: int | None = DEFAULT_RESOLUTION, metric_options: dict | None = None,
+                   progress: bool = False, **match_options) -> NearestResult:
+    """The ``k`` shapes that ``query`` fits into best as a part (``gromov search --partial``).
+
+    The query is matched as the part into every shape of the collection
+    (:func:`gromov.partial.partial_matrix`, one row) and the shapes are ranked by the partial
+    distance (``MatchResult.distance``, in the metric's units). Every shape is matched: the
+    lower bounds and profile gaps of :func:`nearest` bound a two-sided distortion and prune
+    nothing here. Read each neighbour's covered fraction and area ratio (``partial`` of the
+    result) beside its distance: a small part fits almost anywhere with a low distance.
+
+    Parameters
+    ----------
+    query : path, Mesh or ShapeMetric
+        The part (a triangle mesh).
+    shapes : ShapeStore, path of a store folder, or sequence of shapes
+        The wholes. A store: each stored file once (its entry of the partial match's metric,
+        options and ``resolution`` used as it is, else the input mesh of any of its entries,
+        its metric computed), read one at a time; an entry of the query's own file is left
+        out. Point clouds are not matched (counted in ``skipped``).
+    k : int, default 5
+    metric : str, optional
+        Default :data:`gromov.partial.PARTIAL_METRIC`.
+    n_samples, seed, resolution, metric_options, **match_options
+        As :func:`gromov.partial.match_partial`.
+    progress : bool, default False
+        A progress bar (tqdm) on stderr.
+
+    Returns
+    -------
+    NearestResult
+        ``rank_by="partial"``, ``exact`` True, NaN bounds and gaps, ``partial`` the
+        :class:`~gromov.partial.PartialMatrix` (one row, a column per shape matched).
+    """
+    from .partial import PARTIAL_METRIC, partial_matrix
+    from .store import ShapeStore
+
+    k = _check_k(k)
+    metric = PARTIAL_METRIC if metric is None else metric
+    if isinstance(shapes, ShapeStore) or (isinstance(shapes, (str, os.PathLike)) and os.path.isdir(shapes)):
+        names, wholes = _store_wholes(query, shapes, metric, resolution, metric_options)
+    elif isinstance(shapes, (str, os.PathLike)):
+        from .store import StoreError
+
+        raise StoreError(f"shapes: {os.fspath(shapes)} is not a shape store folder")
+    else:
+        wholes = list(shapes)
+        names = [os.fspath(s) if isinstance(s, (str, os.PathLike)) else f"shape {i}" for i, s in enumerate(wholes)]
+    if not wholes:
+        raise ValueError("no shapes to search: the collection is empty (or holds only the query)")
+    m = partial_matrix([query], wholes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
+                       metric_options=metric_options, names=names, progress=progress, **match_options)
+    d = m.distance[0]
+    order = [j for j in np.argsort(np.where(np.isnan(d), np.inf, d), kind="stable") if np.isfinite(d[j])][:k]
+    neighbors = [Neighbor(int(j), names[j], float(d[j])) for j in order]
+    nan, matched = np.full(len(wholes), np.nan), np.isfinite(d)
+    return NearestResult(neighbors, int(matched.sum()), int((~matched).sum()), nan, nan.copy(),
+                         {int(j): float(d[j]) for j in np.flatnonzero(matched)}, True, "partial", 0, m)
+
+
+def _store_wholes(query, store, metric, resolution, metric_options) -> tuple[list, list]:
+    """``(names, wholes)`` of :func:`nearest_wholes` from a store: a function per stored file
+    (the query's own left out) returning its ShapeMetric (an entry in the partial match's
+    options and this version), else its input mesh (the file, where the entry cannot be read)."""
+    from . import __version__
+    from .metrics.diffusion import correspondence_options
+    from .store import ShapeStore, StoreError, _read_npz, _shape_from_arrays, as_store, file_sha256
+
+    if not isinstance(store, ShapeStore):
+        if not os.path.isfile(os.path.join(os.fspath(store), "catalogue.sqlite")):
+            raise StoreError(f"{os.fspath(store)} is not a shape store (no catalogue.sqlite): "
+                             "gromov index FILES --store DIR makes one")
+        store = as_store(store)
+    own = None
+    if isinstance(query, (str, os.PathLike)):
+        if not os.path.isfile(query):
+            raise FileNotFoundError(f"no such file: {os.fspath(query)}")
+        own = file_sha256(query)
+    options = ShapeStore.shape_options(metric, resolution=resolution,
+                                       metric_options=correspondence_options(metric, metric_options))
+    by_file: dict = {}
+    for e in store.entries():   # each file once: an entry in these options first, then this version's
+        if e.content_hash == own:
+            continue
+        rank = (e.options != options, e.version != __version__)
+        if e.content_hash not in by_file or rank < by_file[e.content_hash][0]:
+            by_file[e.content_hash] = (rank, e)
+    names, wholes = [], []
+    for rank, e in by_file.values():
+        def load(e=e, exact=rank == (False, False)):
+            data, reason = store._read(e.file, e.checksum)
+            if reason is None:
+                try:
+                    s = _shape_from_arrays(_read_npz(data))
+                    return s if exact else s.input
+                except Exception as exc:   # noqa: BLE001 - an unreadable entry: its file, where still there
+                    reason = f"cannot be read ({type(exc).__name__}: {exc})"
+            if e.path is None or not os.path.isfile(e.path):
+                raise StoreError(f"{e.path or e.key}: stored entry {e.file} {reason}, and its file is gone")
+            return store._load(e.path) if store._load is not None else e.path
+
+        names.append(e.path or e.key)
+        wholes.append(load)
+    return names, wholes
 
 
 # ----------------------------------------------------------------------------- candidates

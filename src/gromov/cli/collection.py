@@ -96,8 +96,11 @@ def _index_parser(sub) -> None:
 def cmd_search(args) -> int:
     from ..retrieval import nearest
 
+    _metric_by_partial(args)
     if not (Path(args.store) / "catalogue.sqlite").is_file():
         raise _UserError(f"no shape store in {args.store}: gromov index FILES --store {args.store} makes one")
+    if args.partial:
+        return _search_partial(args)
     options = _metric_options(args)
     t = time.perf_counter()
     store, handler = _open_store(args)
@@ -166,9 +169,15 @@ def _search_parser(sub) -> None:
                    help="a two-stage search: match only the C shapes nearest to the query by "
                         "spectral distance (Shape-DNA, kept in the store once computed), all of "
                         "them; --prune is not used")
+    q.add_argument("--partial", action="store_true",
+                   help="the query is a part (a cut or holed shape): match it as the part into every "
+                        "stored shape (gromov match --partial) and rank them by the partial distance, "
+                        "with the share of each one's area it covers; every stored shape is matched "
+                        "(no pruning: the bounds hold for full matches); metric geodesic by default")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)
+    _partial_metric_default(q)
     q.set_defaults(func=cmd_search)
 
 
@@ -178,6 +187,9 @@ _MATRIX_NAME = {"trimmed": "relative_trimmed_distance", "gh": "relative_distance
 
 
 def cmd_pairwise(args) -> int:
+    _metric_by_partial(args)
+    if args.partial:
+        return _pairwise_partial(args)
     n = len(args.files)
     labels, k_local, dask = _pairwise_arguments(args, n)
     # a shape that cannot be used is left out, with its reason; the others go on
@@ -571,6 +583,179 @@ def _pairwise_parser(sub) -> None:
                    help="shape store (gromov index): read each shape's metric from it or add it, "
                         "and record each pair as it finishes; a run stopped at any point continues "
                         "where it stopped")
+    q.add_argument("--partial", action="store_true",
+                   help="the shapes are parts (cut or holed) and wholes: match each shape as the part "
+                        "into every other (gromov match --partial; n (n - 1) ordered pairs, one after "
+                        "the other) and rank each part's wholes by the partial distance, the share of "
+                        "each whole's area it covers beside it; metric geodesic by default; refused "
+                        "with -k, --candidates, --rank-by, --mds, --jobs and Dask")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)
+    _partial_metric_default(q)
     q.set_defaults(func=cmd_pairwise)
+
+
+def _partial_metric_default(q) -> None:
+    """``--metric``'s default: diffusion, or with ``--partial`` the partial match's (geodesic)."""
+    for action in q._actions:
+        if action.dest == "metric":
+            action.default, action.help = None, "distance on the surface (default: diffusion; with --partial geodesic)"
+
+
+def _metric_by_partial(args) -> None:
+    if args.metric is None:
+        from ..partial import PARTIAL_METRIC
+
+        args.metric = PARTIAL_METRIC if args.partial else "diffusion"
+
+
+def _refuse_with_partial(refused: dict) -> None:
+    """A user error for the first option that ``--partial`` does not take: ``refused`` is
+    ``{option: (given, why not)}``."""
+    for option, (given, why) in refused.items():
+        if given:
+            raise _UserError(f"{option} is not available with --partial: {why}")
+
+
+def _pairwise_partial(args) -> int:
+    """``pairwise --partial``: each shape matched as a part into every other
+    (:func:`gromov.partial.partial_matrix`), each part's nearest whole by the partial distance."""
+    from ..mesh import Mesh
+    from ..metrics.diffusion import correspondence_options
+    from ..partial import SMALL_PART, partial_matrix
+
+    every = "every ordered pair is matched"
+    refused = {"-k": (args.k is not None, every), "--candidates": (args.candidates is not None, every),
+               "--rank-by": (args.rank_by != "trimmed", "the shapes are ranked by the partial distance"),
+               "--rank-tau-scale": (args.rank_tau_scale != RANK_TAU_SCALE, "it sets the ranking of full matches"),
+               "--rank-residual": (args.rank_residual != RANK_RESIDUAL, "it sets the ranking of full matches"),
+               "--local-scaling": (args.local_scaling is not None, ("it scales the equal error rate, which a "
+                                                                    "distance that is not symmetric does not have")),
+               "--mds": (args.mds is not None, "the partial distance is not symmetric"),
+               "--jobs": (args.jobs is not None, "the pairs run one after the other in this process"),
+               "--dask": (args.dask is not None, "the pairs run one after the other in this process"),
+               "--scheduler": (args.scheduler is not None, "the pairs run one after the other in this process")}
+    _refuse_with_partial(refused)
+    n = len(args.files)
+    labels, _, _ = _pairwise_arguments(args, n)
+    loaded, unusable = _usable_shapes(args)
+    for f, shape in loaded.items():
+        if not isinstance(shape, Mesh):
+            unusable[f] = "a point cloud: --partial matches triangle meshes"
+    files = [f for f in args.files if f not in unusable]
+    _check_usable(files, n, unusable)
+    options = _metric_options(args)
+    progress = not (args.quiet or args.json)
+    store, handler = _open_store(args)
+    t = time.perf_counter()
+    try:
+        if store is None:
+            _check_memory([min(args.resolution, loaded[f].n_vertices) for f in files],
+                          f"--resolution {args.resolution}")
+            shapes = [loaded[f] for f in files]
+        else:   # each shape's metric in the correspondence's options, as match --partial --store
+            shapes = store.shapes(files, args.metric, resolution=args.resolution,
+                                  metric_options=correspondence_options(args.metric, options), progress=progress)
+        m = partial_matrix(shapes, None, args.metric, n_samples=args.samples, seed=args.seed,
+                           resolution=args.resolution, metric_options=options, names=files, progress=progress)
+    finally:
+        _close_store(store, handler)
+    seconds = time.perf_counter() - t
+    for f, why in unusable.items():
+        print(f"gromov: skipped {f}: {why}", file=sys.stderr)
+    if unusable and labels is not None:
+        labels = [lab for f, lab in zip(args.files, labels) if f not in unusable]
+    nearest = m.nearest
+    result = {"files": files, "skipped": unusable, "partial": True, "metric": args.metric, "metric_options": options,
+              "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
+              "ranked_by": "partial_distance", "distance": m.distance.tolist(),
+              "relative_distance": m.relative_distance.tolist(), "covered_fraction": m.covered_fraction.tolist(),
+              "area_ratio": m.area_ratio.tolist(), "small_part": SMALL_PART,
+              "nearest": [files[j] for j in nearest], "labels": labels, "seconds": seconds}
+    if labels is not None:
+        lab = np.array(labels)
+        result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
+    if store is not None:
+        result["store"] = {"path": args.store, "shapes_read": store.reused, "shapes_computed": store.computed}
+    if args.out:
+        out = Path(args.out)
+        if out.suffix == ".csv":   # rows: the parts, columns: the wholes
+            _write_csv(out, files, m.distance, "partial_distance")
+        else:
+            atomic_savez_compressed(out, files=np.array(files), partial=True, distance=m.distance,
+                                    relative_distance=m.relative_distance, covered_fraction=m.covered_fraction,
+                                    area_ratio=m.area_ratio, small_part=SMALL_PART,
+                                    labels=np.array(labels if labels is not None else [], dtype=str),
+                                    ranked_by="partial_distance", nearest=np.array(result["nearest"]),
+                                    metric=args.metric, options=json.dumps(options), n_samples=args.samples,
+                                    resolution=args.resolution, seed=args.seed)
+    status = 1 if unusable and args.strict else 0
+    if args.json:
+        print(_dumps(result))
+        return status
+    left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
+    print(f"{len(files)} shapes{left_out}, {len(files) * (len(files) - 1)} ordered pairs (each shape as a part of "
+          f"each other), {args.metric} metric, {args.samples} samples per part, {seconds:.1f} s; nearest whole "
+          f"by partial distance, with the share of its area the part covers")
+    if store is not None:
+        print(f"  store {args.store}: {store.reused} of {len(files)} shapes read from it, {store.computed} computed")
+    width = max(len(f) for f in files)
+    for i, f in enumerate(files):
+        j = nearest[i]
+        mark = ""
+        if m.small[i, j]:
+            mark = f"   <- keeps only {m.area_ratio[i, j]:.0%} of its area: placement unreliable"
+        elif labels is not None and labels[j] != labels[i]:
+            mark = f"   <- another class ({labels[i]} vs {labels[j]})"
+        print(f"  {f:<{width}}  in {files[j]}: {m.distance[i, j]:.6g} ({m.relative_distance[i, j]:.4%} of its "
+              f"diameter), covers {m.covered_fraction[i, j]:.1%} of it{mark}")
+    if labels is not None:
+        print(f"  labels: nearest-whole accuracy {result['nn_accuracy']:.1%} (no equal error rate: the partial "
+              "distance is not symmetric)")
+    if args.out:
+        print(f"  wrote {Path(args.out)}")
+    return status
+
+
+def _search_partial(args) -> int:
+    """``search --partial``: the query matched as a part into every stored shape
+    (:func:`gromov.retrieval.nearest_wholes`)."""
+    from ..partial import SMALL_PART
+    from ..retrieval import nearest_wholes
+
+    why = "every stored shape is matched (the bounds and gaps hold for full matches)"
+    refused = {"--candidates": (args.candidates is not None, why),
+               "--prune": (args.prune != "profile", why), "--slack": (args.slack != PROFILE_SLACK, why),
+               "--triangle-slack": (args.triangle_slack != TRIANGLE_SLACK, why),
+               "--rank-by": (args.rank_by != "trimmed", "the shapes are ranked by the partial distance"),
+               "--rank-tau-scale": (args.rank_tau_scale != RANK_TAU_SCALE, "it sets the ranking of full matches"),
+               "--rank-residual": (args.rank_residual != RANK_RESIDUAL, "it sets the ranking of full matches")}
+    _refuse_with_partial(refused)
+    options = _metric_options(args)
+    t = time.perf_counter()
+    store, handler = _open_store(args)
+    try:
+        r = nearest_wholes(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
+                           resolution=args.resolution, metric_options=options,
+                           progress=not (args.quiet or args.json))
+    finally:
+        _close_store(store, handler)
+    seconds = time.perf_counter() - t
+    if args.json:
+        print(_dumps({"query": args.query, "store": args.store, "k": args.k, **r.to_dict(),
+                      "metric": args.metric, "metric_options": options, "small_part": SMALL_PART,
+                      "seconds": seconds}))
+        return 0
+    n = r.full_matches + r.skipped
+    clouds = f", {r.skipped} point clouds left out" if r.skipped else ""
+    print(f"{len(r.neighbors)} nearest of {n} shapes by partial distance ({args.query} as a part of each, "
+          f"{args.metric} metric); {r.full_matches} matched{clouds} (exact: no pruning), {seconds:.1f} s")
+    m = r.partial
+    width = max(len(x.name) for x in r.neighbors)
+    for i, x in enumerate(r.neighbors, 1):
+        j = x.index
+        mark = (f"   <- the part keeps only {m.area_ratio[0, j]:.0%} of its area: placement unreliable"
+                if m.small[0, j] else "")
+        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.6g} ({m.relative_distance[0, j]:.4%} of its diameter), "
+              f"covers {m.covered_fraction[0, j]:.1%} of it{mark}")
+    return 0
