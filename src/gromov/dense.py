@@ -369,7 +369,7 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     .. math:: C = \Phi_X^\top M_X \Phi_Y[T],
 
     then each vertex of X goes to the vertex of Y whose delta function C carries closest to its
-    own (the point-to-point recovery of ZoomOut, §4),
+    own (ZoomOut's point-to-point recovery),
 
     .. math:: T(v) = \arg\min_{w} \lVert \Phi_X(v) - \Phi_Y(w)\, C^\top \rVert .
 
