@@ -11,7 +11,7 @@ each input mesh's Laplace-Beltrami eigenpairs, computed once per shape: the defa
 computes them afresh on every run (a new pair of shapes, as ``gromov match`` on two files),
 the row "input eigenpairs cached" reuses them (a shape matched again).
 
-Then the two eigendecompositions alone (100 eigenpairs each), the ways measured taking turns
+Then the two eigendecompositions alone (``INPUT_K`` eigenpairs each), the ways measured taking turns
 in each of ``--repeat`` rounds: scipy's ``eigsh(L, k, M, sigma)`` as it comes (SuperLU,
 2k + 1 Lanczos vectors, BLAS threads as configured), and the shift-invert solve of
 :func:`gromov.dense.laplace_beltrami_basis` (3k/2 + 1 vectors, one BLAS thread) with SuperLU
