@@ -711,19 +711,27 @@ def nearest_wholes(query, shapes, k: int = 5, metric: str | None = None, *, n_sa
                          {int(j): float(d[j]) for j in np.flatnonzero(matched)}, True, "partial", 0, m)
 
 
+def _opened_store(store):
+    """``store`` as a :class:`~gromov.store.ShapeStore`: one given, or the folder of one."""
+    from .store import ShapeStore, StoreError, as_store
+
+    if isinstance(store, ShapeStore):
+        return store
+    if not os.path.isfile(os.path.join(os.fspath(store), "catalogue.sqlite")):
+        raise StoreError(f"{os.fspath(store)} is not a shape store (no catalogue.sqlite): "
+                         "gromov index FILES --store DIR makes one")
+    return as_store(store)
+
+
 def _store_wholes(query, store, metric, resolution, metric_options) -> tuple[list, list]:
     """``(names, wholes)`` of :func:`nearest_wholes` from a store: a function per stored file
     (the query's own left out) returning its ShapeMetric (an entry in the partial match's
     options and this version), else its input mesh (the file, where the entry cannot be read)."""
     from . import __version__
     from .metrics.diffusion import correspondence_options
-    from .store import ShapeStore, StoreError, _read_npz, _shape_from_arrays, as_store, file_sha256
+    from .store import ShapeStore, StoreError, _read_npz, _shape_from_arrays, file_sha256
 
-    if not isinstance(store, ShapeStore):
-        if not os.path.isfile(os.path.join(os.fspath(store), "catalogue.sqlite")):
-            raise StoreError(f"{os.fspath(store)} is not a shape store (no catalogue.sqlite): "
-                             "gromov index FILES --store DIR makes one")
-        store = as_store(store)
+    store = _opened_store(store)
     own = None
     if isinstance(query, (str, os.PathLike)):
         if not os.path.isfile(query):
@@ -818,13 +826,9 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
     """The store's entries with these options (the query's own entry left out), their
     invariants read from the store or computed from the entry and kept there."""
     from . import __version__
-    from .store import ShapeStore, StoreError, as_store, file_sha256
+    from .store import ShapeStore, StoreError, file_sha256
 
-    if not isinstance(store, ShapeStore):
-        if not os.path.isfile(os.path.join(os.fspath(store), "catalogue.sqlite")):
-            raise StoreError(f"{os.fspath(store)} is not a shape store (no catalogue.sqlite): "
-                             "gromov index FILES --store DIR makes one")
-        store = as_store(store)
+    store = _opened_store(store)
     tau = rank_tau_scale
     options = ShapeStore.shape_options(metric, rank_tau_scale=tau, **shape_args)
     entries = [e for e in store.entries() if e.options == options and e.version == __version__]
