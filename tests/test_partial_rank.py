@@ -73,8 +73,25 @@ def test_a_part_finds_its_whole(shapes):
     order = [names[j] for j in np.argsort(m.distance[0])]
     assert set(order[:2]) == {"A", "A_moved"}
     assert names[m.nearest[0]] in ("A", "A_moved")
+    np.testing.assert_allclose(m.score, m.relative_distance / m.covered_fraction)
     # in its own whole the part covers about its own share of the area
     assert abs(m.covered_fraction[0, names.index("A")] - part.area / wholes["A"].area) < 0.3
+
+
+def test_the_score_is_the_relative_distance_per_share_covered():
+    """A whole that the part fits slightly better but covers a third as much of is not the
+    nearest; a whole with nothing covered never is; with ``same`` the diagonal is 0."""
+    from gromov.partial import PartialMatrix
+
+    rel = np.array([[0.020, 0.015, 0.001]])
+    cover = np.array([[0.6, 0.2, 0.0]])
+    m = PartialMatrix(rel * 10, rel, cover, np.full((1, 3), 0.5), False, ["p"], ["a", "b", "c"], "geodesic", 10, 0.0)
+    np.testing.assert_allclose(m.score[0, :2], [0.020 / 0.6, 0.015 / 0.2])
+    assert m.score[0, 2] == np.inf and m.nearest[0] == 0
+    sq = PartialMatrix(np.zeros((2, 2)), np.array([[0.0, 0.01], [0.02, 0.0]]), np.array([[1.0, 0.5], [0.5, 1.0]]),
+                       np.ones((2, 2)), True, ["a", "b"], ["a", "b"], "geodesic", 10, 0.0)
+    np.testing.assert_allclose(sq.score, [[0.0, 0.02], [0.04, 0.0]])
+    np.testing.assert_array_equal(sq.nearest, [1, 0])
 
 
 def test_nearest_wholes_of_a_list(shapes):
@@ -169,14 +186,14 @@ def test_cli_pairwise_partial_json(files, matrix, capsys, tmp_path):
             "--out", str(out)]
     assert main(argv) == 0
     got = json.loads(capsys.readouterr().out)
-    assert got["partial"] is True and got["metric"] == "geodesic" and got["ranked_by"] == "partial_distance"
+    assert got["partial"] is True and got["metric"] == "geodesic" and got["ranked_by"] == "relative_distance/covered_fraction"
     assert np.allclose(got["distance"], m.distance[keep])
     assert np.allclose(got["covered_fraction"], m.covered_fraction[keep])
     assert np.allclose(got["area_ratio"], m.area_ratio[keep]) and got["small_part"] == SMALL_PART
     assert got["nearest"][0] == files[1]   # the part's whole
     z = np.load(out)
     assert np.allclose(z["distance"], m.distance[keep]) and np.allclose(z["covered_fraction"], m.covered_fraction[keep])
-    assert list(z["files"]) == files and str(z["ranked_by"]) == "partial_distance"
+    assert list(z["files"]) == files and str(z["ranked_by"]) == "relative_distance/covered_fraction"
 
 
 def test_cli_pairwise_partial_text_and_csv(files, capsys, tmp_path):
@@ -187,7 +204,7 @@ def test_cli_pairwise_partial_text_and_csv(files, capsys, tmp_path):
             "--out", str(out)]
     assert main(argv) == 0
     text = capsys.readouterr().out
-    assert "2 ordered pairs" in text and f"in {files[1]}" in text and "covers" in text
+    assert "2 ordered pairs" in text and f"in {files[1]}" in text and "of it covered" in text
     rows = out.read_text().splitlines()
     assert rows[0].startswith("partial_distance,") and rows[1].split(",")[1] == "0.0"
 
@@ -220,7 +237,7 @@ def test_cli_search_partial(files, capsys, tmp_path):
     assert got["neighbors"][0]["file"].endswith("torus.off")
     assert all(0 < x["covered_fraction"] <= 1 and x["area_ratio"] > 0 for x in got["neighbors"])
     assert main([*argv, "-q"]) == 0
-    assert "by partial distance" in capsys.readouterr().out
+    assert "per share covered" in capsys.readouterr().out
     # the query's own file is left out
     assert main(["search", files[1], "--store", str(store), "--partial", "--samples", str(N), "--resolution",
                  "100000", "--json"]) == 0

@@ -350,9 +350,23 @@ class PartialMatrix:
     seconds: float
 
     @property
+    def score(self) -> np.ndarray:
+        r"""``(n_parts, n_wholes)``: the ranked value, the relative distance per share of the
+        whole covered, :math:`D_{ij} / (\operatorname{diam}_j\, c_{ij})` (inf where nothing is
+        covered, NaN where not matched). A part matched into a shape it covers little of is not
+        taken for a good match by fitting a small region well (docs/design/partial.md)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = self.relative_distance / self.covered_fraction
+        s[(self.covered_fraction == 0) & np.isfinite(self.relative_distance)] = np.inf
+        if self.same:
+            np.fill_diagonal(s, 0.0)
+        return s
+
+    @property
     def nearest(self) -> np.ndarray:
-        """``(n_parts,)`` int: each part's nearest whole by ``distance`` (another shape with ``same``)."""
-        d = np.where(np.isnan(self.distance), np.inf, self.distance)
+        """``(n_parts,)`` int: each part's nearest whole by :attr:`score` (another shape with
+        ``same``)."""
+        d = np.where(np.isnan(self.score), np.inf, self.score)
         if self.same:
             d = d + np.diag(np.full(len(d), np.inf))
         return np.argmin(d, axis=1)
@@ -380,10 +394,11 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
     of the one-sided residuals of part ``i`` in whole ``j``. It is not symmetric: a part fits
     into its whole, not the whole into the part. Each shape is prepared once (its metric in
     the correspondence's options) and every ordered pair is matched, one after the other; no
-    pair is pruned. Each part's nearest whole is :math:`\arg\min_j D_{ij}`
-    (:attr:`PartialMatrix.nearest`); read it with :attr:`PartialMatrix.covered_fraction` and
-    :attr:`PartialMatrix.area_ratio` beside it -- a small part fits almost anywhere with a low
-    distance. The pairs whose part holds less than :data:`SMALL_PART` of the whole's area are
+    pair is pruned. Each part's nearest whole is the one of lowest relative distance per
+    share of the whole covered, :math:`\arg\min_j D_{ij} / (\operatorname{diam}_j\, c_{ij})`
+    (:attr:`PartialMatrix.score`, :attr:`PartialMatrix.nearest`): a part fits a region of many
+    shapes well, and the share it covers tells its own whole from the others. Read
+    :attr:`PartialMatrix.area_ratio` beside it -- a small part fits almost anywhere. The pairs whose part holds less than :data:`SMALL_PART` of the whole's area are
     named in one :class:`~gromov.errors.SmallPartWarning` (not one per pair).
 
     Parameters

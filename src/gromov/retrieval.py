@@ -480,13 +480,14 @@ class NearestResult:
     def to_dict(self) -> dict:
         """The JSON of ``gromov search --json``: ``neighbors`` (``file``, ``distance``, nearest
         first), ``full_matches``, ``skipped``, ``exact``, ``ranked_by`` and ``known_pairs``;
-        with ``partial`` each neighbour's ``relative_distance``, ``covered_fraction`` and
-        ``area_ratio`` too."""
+        with ``partial`` each neighbour's ``partial_distance``, ``relative_distance``,
+        ``covered_fraction`` and ``area_ratio`` too (its ``distance`` is the ranked score)."""
         neighbors = [{"file": n.name, "distance": n.distance} for n in self.neighbors]
         if self.partial is not None:
             m = self.partial
             for x, n in zip(neighbors, self.neighbors):
-                x.update(relative_distance=float(m.relative_distance[0, n.index]),
+                x.update(partial_distance=float(m.distance[0, n.index]),
+                         relative_distance=float(m.relative_distance[0, n.index]),
                          covered_fraction=float(m.covered_fraction[0, n.index]),
                          area_ratio=float(m.area_ratio[0, n.index]))
         return {"neighbors": neighbors, "full_matches": self.full_matches, "skipped": self.skipped,
@@ -656,11 +657,11 @@ def nearest_wholes(query, shapes, k: int = 5, metric: str | None = None, *, n_sa
     """The ``k`` shapes that ``query`` fits into best as a part (``gromov search --partial``).
 
     The query is matched as the part into every shape of the collection
-    (:func:`gromov.partial.partial_matrix`, one row) and the shapes are ranked by the partial
-    distance (``MatchResult.distance``, in the metric's units). Every shape is matched: the
-    lower bounds and profile gaps of :func:`nearest` bound a two-sided distortion and prune
-    nothing here. Read each neighbour's covered fraction and area ratio (``partial`` of the
-    result) beside its distance: a small part fits almost anywhere with a low distance.
+    (:func:`gromov.partial.partial_matrix`, one row) and the shapes are ranked by the relative
+    partial distance per share of the shape covered (:attr:`gromov.partial.PartialMatrix.score`,
+    each neighbour's ``distance``). Every shape is matched: the lower bounds and profile gaps of
+    :func:`nearest` bound a two-sided distortion and prune nothing here. Read each neighbour's
+    area ratio (``partial`` of the result) beside it: a small part fits almost anywhere.
 
     Parameters
     ----------
@@ -703,10 +704,10 @@ def nearest_wholes(query, shapes, k: int = 5, metric: str | None = None, *, n_sa
         raise ValueError("no shapes to search: the collection is empty (or holds only the query)")
     m = partial_matrix([query], wholes, metric, n_samples=n_samples, seed=seed, resolution=resolution,
                        metric_options=metric_options, names=names, progress=progress, **match_options)
-    d = m.distance[0]
-    order = [j for j in np.argsort(np.where(np.isnan(d), np.inf, d), kind="stable") if np.isfinite(d[j])][:k]
+    d = m.score[0]
+    order = [j for j in np.argsort(np.where(np.isnan(d), np.inf, d), kind="stable") if not np.isnan(d[j])][:k]
     neighbors = [Neighbor(int(j), names[j], float(d[j])) for j in order]
-    nan, matched = np.full(len(wholes), np.nan), np.isfinite(d)
+    nan, matched = np.full(len(wholes), np.nan), ~np.isnan(d)
     return NearestResult(neighbors, int(matched.sum()), int((~matched).sum()), nan, nan.copy(),
                          {int(j): float(d[j]) for j in np.flatnonzero(matched)}, True, "partial", 0, m)
 

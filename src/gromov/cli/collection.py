@@ -171,8 +171,9 @@ def _search_parser(sub) -> None:
                         "them; --prune is not used")
     q.add_argument("--partial", action="store_true",
                    help="the query is a part (a cut or holed shape): match it as the part into every "
-                        "stored shape (gromov match --partial) and rank them by the partial distance, "
-                        "with the share of each one's area it covers; every stored shape is matched "
+                        "stored shape (gromov match --partial) and rank them by the partial distance "
+                        "relative to each one's diameter, divided by the share of its area the part "
+                        "covers; every stored shape is matched "
                         "(no pruning: the bounds hold for full matches); metric geodesic by default")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
@@ -586,8 +587,9 @@ def _pairwise_parser(sub) -> None:
     q.add_argument("--partial", action="store_true",
                    help="the shapes are parts (cut or holed) and wholes: match each shape as the part "
                         "into every other (gromov match --partial; n (n - 1) ordered pairs, one after "
-                        "the other) and rank each part's wholes by the partial distance, the share of "
-                        "each whole's area it covers beside it; metric geodesic by default; refused "
+                        "the other) and rank each part's wholes by the partial distance relative to "
+                        "the whole's diameter, divided by the share of its area the part covers; "
+                        "metric geodesic by default; refused "
                         "with -k, --candidates, --rank-by, --mds, --jobs and Dask")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)
@@ -668,7 +670,7 @@ def _pairwise_partial(args) -> int:
     nearest = m.nearest
     result = {"files": files, "skipped": unusable, "partial": True, "metric": args.metric, "metric_options": options,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
-              "ranked_by": "partial_distance", "distance": m.distance.tolist(),
+              "ranked_by": "relative_distance/covered_fraction", "score": m.score.tolist(), "distance": m.distance.tolist(),
               "relative_distance": m.relative_distance.tolist(), "covered_fraction": m.covered_fraction.tolist(),
               "area_ratio": m.area_ratio.tolist(), "small_part": SMALL_PART,
               "nearest": [files[j] for j in nearest], "labels": labels, "seconds": seconds}
@@ -686,7 +688,7 @@ def _pairwise_partial(args) -> int:
                                     relative_distance=m.relative_distance, covered_fraction=m.covered_fraction,
                                     area_ratio=m.area_ratio, small_part=SMALL_PART,
                                     labels=np.array(labels if labels is not None else [], dtype=str),
-                                    ranked_by="partial_distance", nearest=np.array(result["nearest"]),
+                                    ranked_by="relative_distance/covered_fraction", score=m.score, nearest=np.array(result["nearest"]),
                                     metric=args.metric, options=json.dumps(options), n_samples=args.samples,
                                     resolution=args.resolution, seed=args.seed)
     status = 1 if unusable and args.strict else 0
@@ -696,7 +698,7 @@ def _pairwise_partial(args) -> int:
     left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
     print(f"{len(files)} shapes{left_out}, {len(files) * (len(files) - 1)} ordered pairs (each shape as a part of "
           f"each other), {args.metric} metric, {args.samples} samples per part, {seconds:.1f} s; nearest whole "
-          f"by partial distance, with the share of its area the part covers")
+          f"by the relative partial distance per share of the whole covered")
     if store is not None:
         print(f"  store {args.store}: {store.reused} of {len(files)} shapes read from it, {store.computed} computed")
     width = max(len(f) for f in files)
@@ -707,8 +709,8 @@ def _pairwise_partial(args) -> int:
             mark = f"   <- keeps only {m.area_ratio[i, j]:.0%} of its area: placement unreliable"
         elif labels is not None and labels[j] != labels[i]:
             mark = f"   <- another class ({labels[i]} vs {labels[j]})"
-        print(f"  {f:<{width}}  in {files[j]}: {m.distance[i, j]:.6g} ({m.relative_distance[i, j]:.4%} of its "
-              f"diameter), covers {m.covered_fraction[i, j]:.1%} of it{mark}")
+        print(f"  {f:<{width}}  in {files[j]}: {m.score[i, j]:.4g} = {m.relative_distance[i, j]:.4%} of its "
+              f"diameter (distance {m.distance[i, j]:.6g}) / {m.covered_fraction[i, j]:.1%} of it covered{mark}")
     if labels is not None:
         print(f"  labels: nearest-whole accuracy {result['nn_accuracy']:.1%} (no equal error rate: the partial "
               "distance is not symmetric)")
@@ -748,7 +750,8 @@ def _search_partial(args) -> int:
         return 0
     n = r.full_matches + r.skipped
     clouds = f", {r.skipped} point clouds left out" if r.skipped else ""
-    print(f"{len(r.neighbors)} nearest of {n} shapes by partial distance ({args.query} as a part of each, "
+    print(f"{len(r.neighbors)} nearest of {n} shapes by the relative partial distance per share covered "
+          f"({args.query} as a part of each, "
           f"{args.metric} metric); {r.full_matches} matched{clouds} (exact: no pruning), {seconds:.1f} s")
     m = r.partial
     width = max(len(x.name) for x in r.neighbors)
@@ -756,6 +759,6 @@ def _search_partial(args) -> int:
         j = x.index
         mark = (f"   <- the part keeps only {m.area_ratio[0, j]:.0%} of its area: placement unreliable"
                 if m.small[0, j] else "")
-        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.6g} ({m.relative_distance[0, j]:.4%} of its diameter), "
-              f"covers {m.covered_fraction[0, j]:.1%} of it{mark}")
+        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.4g} = {m.relative_distance[0, j]:.4%} of its diameter "
+              f"(distance {m.distance[0, j]:.6g}) / {m.covered_fraction[0, j]:.1%} of it covered{mark}")
     return 0
