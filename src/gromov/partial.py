@@ -43,6 +43,7 @@ import os
 import time
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.sparse import csgraph
@@ -349,7 +350,7 @@ class PartialMatrix:
     n_samples: int
     seconds: float
 
-    @property
+    @cached_property
     def score(self) -> np.ndarray:
         r"""``(n_parts, n_wholes)``: the ranked value, the relative distance per share of the
         whole covered, :math:`D_{ij} / (\operatorname{diam}_j\, c_{ij})` (inf where nothing is
@@ -362,7 +363,7 @@ class PartialMatrix:
             np.fill_diagonal(s, 0.0)
         return s
 
-    @property
+    @cached_property
     def nearest(self) -> np.ndarray:
         """``(n_parts,)`` int: each part's nearest whole by :attr:`score` (another shape with
         ``same``)."""
@@ -371,7 +372,7 @@ class PartialMatrix:
             d = d + np.diag(np.full(len(d), np.inf))
         return np.argmin(d, axis=1)
 
-    @property
+    @cached_property
     def small(self) -> np.ndarray:
         """``(n_parts, n_wholes)`` bool: pairs whose part holds less than :data:`SMALL_PART` of the
         whole's area (the diagonal left out with ``same``)."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -136,6 +137,17 @@ def _open_store(args):
     except BaseException:
         _close_store(None, handler)
         raise
+
+
+@contextmanager
+def _store_of(args):
+    """The ``--store`` of the command open for a ``with`` block (None without ``--store``),
+    closed and its warnings' handler removed after (:func:`_open_store`, :func:`_close_store`)."""
+    store, handler = _open_store(args)
+    try:
+        yield store
+    finally:
+        _close_store(store, handler)
 
 
 def _close_store(store, handler) -> None:

@@ -16,8 +16,8 @@ from .._defaults import DEFAULT_RESOLUTION, PROFILE_SLACK, RANK_RESIDUAL, RANK_R
 from ..errors import GromovError
 from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
                     _positive_float, _positive_int, _rank_tau_scale)
-from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _close_store,
-                      _dumps, _load, _open_store, _stem)
+from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _dumps, _load,
+                      _stem, _store_of)
 
 
 def class_from_name(path: str) -> str:
@@ -61,12 +61,9 @@ def _stored_shapes(store, args, options: dict, progress: bool, files: list | Non
 def cmd_index(args) -> int:
     options = _metric_options(args)
     t = time.perf_counter()
-    store, handler = _open_store(args)
-    try:
+    with _store_of(args) as store:
         _stored_shapes(store, args, options, progress=not args.quiet)
         size = sum(e.bytes for e in store.entries())
-    finally:
-        _close_store(store, handler)
     if not args.quiet:
         n = len(args.files)
         print(f"{n} file{'s' if n != 1 else ''} in {args.store}: {store.computed} computed, {store.reused} "
@@ -103,15 +100,12 @@ def cmd_search(args) -> int:
         return _search_partial(args)
     options = _metric_options(args)
     t = time.perf_counter()
-    store, handler = _open_store(args)
-    try:
+    with _store_of(args) as store:
         r = nearest(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
                     resolution=args.resolution, metric_options=options, rank_by=args.rank_by,
                     rank_tau_scale=args.rank_tau_scale, rank_residual=args.rank_residual, prune=args.prune,
                     slack=args.slack, triangle_slack=args.triangle_slack, candidates=args.candidates,
                     progress=not (args.quiet or args.json))
-    finally:
-        _close_store(store, handler)
     seconds = time.perf_counter() - t
     if args.json:
         print(_dumps({"query": args.query, "store": args.store, "k": args.k, **r.to_dict(),
@@ -278,8 +272,7 @@ def _pairwise_run(args, files: list, loaded: dict, unusable: dict, options: dict
     """``(PairwiseGH, files, store, seconds)``: the matrices of the usable files, the store open
     for the run. Where a shape's metric cannot be computed, that shape is added to ``unusable``
     with its reason and the others are matched without it."""
-    store, handler = _open_store(args)
-    try:
+    with _store_of(args) as store:
         if store is None and not dask:   # (with Dask the matrices are on the workers)
             _check_memory([min(args.resolution, loaded[f].n_vertices) for f in files],
                           f"--resolution {args.resolution}")
@@ -294,8 +287,6 @@ def _pairwise_run(args, files: list, loaded: dict, unusable: dict, options: dict
             files = [f for f in files if f not in failed]
             _check_usable(files, len(args.files), unusable)
             r = _pairwise_matrix(args, files, loaded, store, options, dask)
-    finally:
-        _close_store(store, handler)
     return r, files, store, time.perf_counter() - t
 
 
@@ -648,9 +639,8 @@ def _pairwise_partial(args) -> int:
     _check_usable(files, n, unusable)
     options = _metric_options(args)
     progress = not (args.quiet or args.json)
-    store, handler = _open_store(args)
     t = time.perf_counter()
-    try:
+    with _store_of(args) as store:
         if store is None:
             _check_memory([min(args.resolution, loaded[f].n_vertices) for f in files],
                           f"--resolution {args.resolution}")
@@ -660,8 +650,6 @@ def _pairwise_partial(args) -> int:
                                   metric_options=correspondence_options(args.metric, options), progress=progress)
         m = partial_matrix(shapes, None, args.metric, n_samples=args.samples, seed=args.seed,
                            resolution=args.resolution, metric_options=options, names=files, progress=progress)
-    finally:
-        _close_store(store, handler)
     seconds = time.perf_counter() - t
     for f, why in unusable.items():
         print(f"gromov: skipped {f}: {why}", file=sys.stderr)
@@ -735,13 +723,10 @@ def _search_partial(args) -> int:
     _refuse_with_partial(refused)
     options = _metric_options(args)
     t = time.perf_counter()
-    store, handler = _open_store(args)
-    try:
+    with _store_of(args) as store:
         r = nearest_wholes(args.query, store, args.k, args.metric, n_samples=args.samples, seed=args.seed,
                            resolution=args.resolution, metric_options=options,
                            progress=not (args.quiet or args.json))
-    finally:
-        _close_store(store, handler)
     seconds = time.perf_counter() - t
     if args.json:
         print(_dumps({"query": args.query, "store": args.store, "k": args.k, **r.to_dict(),
