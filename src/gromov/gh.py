@@ -159,8 +159,9 @@ def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", s
         part measured in Y's metric, samples near X's boundary down-weighted; the result also
         holds the region of Y the part covers (``y_covered``, ``covered_fraction``). See
         :func:`gromov.partial.match_partial` (which takes ``metric``, ``n_samples``, ``seed``,
-        ``resolution``, ``metric_options``, ``search`` and ``dense``; the other options are for
-        two whole shapes).
+        ``resolution``, ``metric_options``, ``search`` and ``dense``: True or "input", the part's
+        dense map refined by ZoomOut with a rectangular functional map, or "placed"; the other
+        options are for two whole shapes).
 
     Returns
     -------

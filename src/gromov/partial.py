@@ -48,9 +48,11 @@ from functools import cached_property
 import numpy as np
 from scipy.sparse import csgraph
 
-from ._arrays import one_blas_thread
+from ._arrays import one_blas_thread, readonly
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
+from .dense import _at_vertices, _by_file_id, _input_basis, _input_images, _nearest_in_rings
+from .dense import ring_neighbourhoods
 from .errors import GromovWarning, MetricError, SmallPartWarning
 from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
@@ -59,8 +61,10 @@ from .metrics.diffusion import correspondence_options
 from .search import SearchOptions, _candidates, _orient, _Search, anchored_images, signature_mismatch
 from .shape_metric import ShapeMetric
 
-__all__ = ["BOUNDARY_WIDTH", "PARTIAL_METRIC", "SMALL_PART", "PartialMatrix", "boundary_distance", "covered_region",
-           "in_whole_metric", "local_anchored_map", "match_partial", "partial_matrix", "sample_weights"]
+__all__ = ["BOUNDARY_WIDTH", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START", "PARTIAL_K_STEP",
+           "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix", "boundary_distance",
+           "covered_region", "in_whole_metric", "local_anchored_map", "match_partial", "partial_matrix",
+           "partial_zoomout", "sample_weights"]
 
 logger = logging.getLogger(__name__)
 
@@ -92,6 +96,14 @@ N_LOCAL = 16
 #: the image of a part vertex, after a closing of ``COVER_CLOSE`` edge lengths
 #: (:func:`covered_region`).
 COVER_RADIUS, COVER_CLOSE = 1.0, 2.0
+#: The dense map's refinement on the input meshes (:func:`partial_zoomout`): the part's
+#: eigenfunctions from ``PARTIAL_K_START`` by ``PARTIAL_K_STEP`` up to ``PARTIAL_K_END``, each
+#: image searched within ``PARTIAL_RINGS`` rings of the current one, the whole's eigenfunctions
+#: capped at ``PARTIAL_KY_MAX`` (docs/design/partial.md).
+PARTIAL_K_START, PARTIAL_K_END, PARTIAL_K_STEP, PARTIAL_RINGS, PARTIAL_KY_MAX = 10, 80, 4, 2, 160
+#: The values of ``match_partial(..., dense=...)``: True or "input" (placed, then refined by
+#: :func:`partial_zoomout`), "placed" (not refined).
+PARTIAL_DENSE = (True, "input", "placed")
 #: :func:`match_partial` warns (:class:`~gromov.errors.SmallPartWarning`) when the part's area is
 #: below this fraction of the whole's: the parts measured hold 45-75% of it, and below a quarter
 #: more than half of even a round part lies in the down-weighted band along its boundary
@@ -193,6 +205,86 @@ def covered_region(mesh: Mesh, images: np.ndarray, radius: float, close: float =
     return region
 
 
+def partial_zoomout(sx: ShapeMetric, sy: ShapeMetric, T: np.ndarray, *, k_start: int = PARTIAL_K_START,
+                    k_end: int = PARTIAL_K_END, step: int = PARTIAL_K_STEP, rings: int = PARTIAL_RINGS,
+                    ky_max: int = PARTIAL_KY_MAX) -> np.ndarray:
+    r"""Refine a part's vertex map into the whole on the input meshes: ZoomOut with a
+    rectangular functional map.
+
+    ZoomOut (Melzi et al., SIGGRAPH Asia 2019) as :func:`gromov.dense.input_zoomout` runs it, on
+    the Laplace-Beltrami eigenfunctions :math:`\Phi` of each input mesh, with the functional map
+    of a part (Rodolà, Cosmo, Bronstein, Torsello & Cremers, "Partial functional
+    correspondence", Computer Graphics Forum 36(1), 2017): the eigenvalues grow as
+    :math:`4 \pi k / \text{area}` (Weyl's law), so the part's first :math:`k_X` eigenfunctions
+    span about the frequencies of the whole's first :math:`k_Y = k_X / r`, :math:`r` the part's
+    area over the whole's, and its functional map is a :math:`k_X \times k_Y` band of slope
+    :math:`r`, not a square. For :math:`k_X` = ``k_start``, ``k_start + step``, ... up to
+    ``k_end``, with :math:`k_Y = \min(\operatorname{round}(k_X / r), \text{ky\_max})`,
+
+    .. math:: C = \Phi_{X,k_X}^\top M_X \Phi_{Y,k_Y}[T], \qquad
+              T(v) = \arg\min_{w \in N(T(v))} \lVert \Phi_{X,k_X}(v) - \Phi_{Y,k_Y}(w)\, C^\top \rVert ,
+
+    each image searched in the ``rings``-ring :math:`N(T(v))` of the current one on Y's input
+    mesh (the map is refined, never moved to another region). ``ky_max`` caps the whole's
+    eigenfunctions: a part of 40% of the whole would take :math:`k_Y = 200` at :math:`k_X = 80`,
+    and Y's eigensolve is the step's largest cost on a large mesh (its basis is computed once
+    per shape and reused). The input vertices of X on pieces left out of its working mesh
+    (:attr:`~gromov.resolution.WorkingMesh.source_kept`) keep their images. A point cloud has no
+    Laplace-Beltrami operator here: ``T`` is returned as it is.
+
+    Parameters
+    ----------
+    sx, sy : ShapeMetric
+        The part and the whole.
+    T : ndarray (n_X,) of int
+        Vertex of Y's input mesh (index, not file id) for each vertex of X's input mesh.
+    k_start, k_end, step, rings, ky_max : int, defaults PARTIAL_K_START (10), PARTIAL_K_END (80),
+        PARTIAL_K_STEP (4), PARTIAL_RINGS (2), PARTIAL_KY_MAX
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+        The refined map (a new array).
+
+    Examples
+    --------
+    >>> r = gromov.match(part, whole, partial=True, dense="placed")       # doctest: +SKIP
+    >>> T = partial_zoomout(sx, sy, sy.input.from_input_ids(r.x_to_y_dense_vertex))  # doctest: +SKIP
+    """
+    T = np.array(T, dtype=np.int64)
+    if T.shape != (sx.input.n_vertices,):
+        raise ValueError(f"T must have one vertex of Y per input vertex of X, shape ({sx.input.n_vertices},), "
+                         f"got {T.shape}")
+    for name, value, low in (("k_start", k_start, 1), ("k_end", k_end, k_start), ("step", step, 1),
+                             ("rings", rings, 0), ("ky_max", ky_max, 1)):
+        if int(value) != value or value < low:
+            raise ValueError(f"{name} must be an integer of at least {low}, got {value!r}")
+    if not (sx.has_faces and sy.has_faces):
+        return T
+    ratio = min(area_ratio(sx, sy), 1.0)
+    ks = list(range(int(k_start), int(k_end) + 1, int(step)))
+
+    def k_y(k: int) -> int:
+        return max(1, min(int(round(k / ratio)), int(ky_max)))
+
+    phx, mx = _input_basis(sx, ks[-1])
+    phy, _ = _input_basis(sy, k_y(ks[-1]))
+    if sy._input_rings is None or sy._input_rings[0] != rings:
+        sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
+    ptr, ids = (readonly(a) for a in sy._input_rings[1])
+    left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
+    T0 = T[left_out]
+    with one_blas_thread():   # products of n x k by k x k: a second thread costs more than it gains
+        for k in ks:
+            kx, ky = min(k, phx.shape[1]), min(k_y(k), phy.shape[1])
+            C = phx[:, :kx].T @ (mx[:, None] * phy[T, :ky])
+            a = readonly(np.ascontiguousarray(phx[:, :kx]))
+            b = readonly(np.ascontiguousarray(phy[:, :ky] @ C.T))
+            T = _nearest_in_rings(a, b, readonly(T), ptr, ids)
+            T[left_out] = T0
+    return T
+
+
 def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, seed: int = 0,
                   resolution: int | None = DEFAULT_RESOLUTION, metric_options: dict | None = None,
                   search: SearchOptions | None = None, dense: bool | str = False,
@@ -208,9 +300,10 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         The whole.
     metric, n_samples, seed, resolution, metric_options, search
         As :func:`gromov.match`.
-    dense : bool or str, default False
-        Also the image of every input vertex of X on Y (placed from the samples; the spectral
-        refinement of full matches assumes two whole shapes and is not applied).
+    dense : bool, "input" or "placed", default False
+        Also the image of every input vertex of X on Y. True or "input": placed from the
+        samples, then refined on the input meshes by ZoomOut with a rectangular functional map
+        (:func:`partial_zoomout`); "placed": not refined.
     boundary : float, default BOUNDARY_WIDTH
         Width of the down-weighted band along X's boundary, ÷ sqrt(area of Y); 0: no weights.
     same_time : bool, default True
@@ -235,6 +328,9 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     search = SearchOptions() if search is None else search
     if n_samples < 3:
         raise ValueError(f"n_samples must be at least 3, got {n_samples}")
+    if dense is not False and dense is not None and not any(dense is d or dense == d for d in PARTIAL_DENSE):
+        raise ValueError(f"dense must be True, False, 'input' or 'placed' for a partial match (its dense map "
+                         f"is refined on the input meshes), got {dense!r}")
     options = correspondence_options(metric, metric_options)
     sy = _prepare(Y, metric, resolution, options, "Y")
     sx = _prepare(X, metric, resolution, options, "X")
@@ -288,9 +384,12 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w)
     extra = {}
     if dense:
-        from .dense import _by_file_id, _input_images
-
         face, bary, vertex = _input_images(sx, sy, T)
+        if dense != "placed":   # refined on the input meshes
+            vertex = partial_zoomout(sx, sy, vertex)
+            kept = sx.working.source_kept
+            face, bary = face.copy(), bary.copy()
+            face[kept], bary[kept] = _at_vertices(sy.input, vertex[kept])
         m = _by_file_id(sx, face, bary, sy.input.input_ids[vertex])
         back = _covered_back(sx, sy, T, covered_w, covered)
         extra = {"x_to_y_dense_face": m.face, "x_to_y_dense_bary": m.bary, "x_to_y_dense_vertex": m.vertex,

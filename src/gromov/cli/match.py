@@ -86,6 +86,9 @@ def cmd_match(args) -> int:
     _status(args, f"matching {args.samples} samples" + (", then the dense maps" if dense else ""))
     if args.partial and (args.norm != "l2" or args.solver != "gmds"):
         raise _UserError("--partial takes the l2 norm and the gmds solver")
+    if args.partial and args.dense == "zoomout":
+        raise _UserError("--partial refines the dense map on the input meshes: --dense, --dense input or "
+                         "--dense placed")
     r = match(shapes[0], shapes[1], args.metric, n_samples=args.samples, norm=args.norm,
               solver=args.solver, seed=args.seed, orientation=args.orientation, dense=dense, search=search,
               partial=args.partial)
