@@ -26,7 +26,8 @@ Methods, per part -> whole pair:
   dense map refined on the input meshes);
 - ``ours_partial``: ``gromov.match(part, whole, partial=True, dense=True)`` (:mod:`gromov.partial`:
   the part's samples embedded into the whole alone, in the geodesic metric, samples near the
-  part's boundary down-weighted; the dense map placed from the samples, not refined), its IoU
+  part's boundary down-weighted; the dense map placed from the samples, then refined on the input
+  meshes by ZoomOut with a rectangular functional map, :func:`gromov.partial.partial_zoomout`), its IoU
   that of the covered region it reports (``y_covered``), ``iou_images`` that of its images
   grown by one ring as for the others; with it, per class, the uncut pose matched to the next
   one both ways, full and partial (``full_vs_partial``: the relative distances and their ratio);
@@ -500,7 +501,7 @@ def main(argv=None):
     res = {"gromov": {"version": gromov.__version__,
                       "match": {"metric": "diffusion", "dense": "input", "n_samples": 100,
                                 "radius_fraction_of_part_diameter": args.radius or None},
-                      "partial": {"metric": "geodesic", "dense": "placed", "n_samples": 100,
+                      "partial": {"metric": "geodesic", "dense": "input", "n_samples": 100,
                                   "boundary_width": BOUNDARY_WIDTH}},
            "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS,
            "run": {"classes": classes, "per_class": per_class, "kinds": kinds, "methods": methods,
