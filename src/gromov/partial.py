@@ -28,9 +28,11 @@ part, the second the whole, and
    ``boundary`` x the whole's :math:`\sqrt{\text{area}}`. The initial search
    (:mod:`gromov.search`, one direction) places the interior samples first.
 
-The region of the whole the part covers is read off the dense map: the whole's vertices within
-one edge length (along the whole's surface) of the image of a part vertex. Its share of the
-whole's area is reported with the distance. A part below :data:`SMALL_PART` of the whole's
+The region of the whole the part covers is read off the placed dense map: the whole's vertices
+within one edge length (along the whole's surface) of the image of a part vertex. Its share of
+the whole's area is reported with the distance. With ``dense=True`` the part's map is then
+refined on the input meshes by ZoomOut with a rectangular functional map
+(:func:`partial_zoomout`; Rodolà, Cosmo, Bronstein, Torsello & Cremers, CGF 2017). A part below :data:`SMALL_PART` of the whole's
 area is matched all the same, with a :class:`~gromov.errors.SmallPartWarning`.
 :func:`partial_matrix` matches every part into every whole, for ranking. The measurements
 behind these choices are in docs/design/partial.md.
@@ -217,7 +219,7 @@ def partial_zoomout(sx: ShapeMetric, sy: ShapeMetric, T: np.ndarray, *, k_start:
     correspondence", Computer Graphics Forum 36(1), 2017): the eigenvalues grow as
     :math:`4 \pi k / \text{area}` (Weyl's law), so the part's first :math:`k_X` eigenfunctions
     span about the frequencies of the whole's first :math:`k_Y = k_X / r`, :math:`r` the part's
-    area over the whole's, and its functional map is a :math:`k_X \times k_Y` band of slope
+    area over the whole's (at most 1), and its functional map is a :math:`k_X \times k_Y` band of slope
     :math:`r`, not a square. For :math:`k_X` = ``k_start``, ``k_start + step``, ... up to
     ``k_end``, with :math:`k_Y = \min(\operatorname{round}(k_X / r), \text{ky\_max})`,
 
