@@ -53,8 +53,7 @@ from scipy.sparse import csgraph
 from ._arrays import one_blas_thread, readonly
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
-from .dense import _at_vertices, _by_file_id, _input_basis, _input_images, _nearest_in_rings
-from .dense import ring_neighbourhoods
+from .dense import _at_vertices, _by_file_id, _input_basis, _input_images, _input_rings, _nearest_in_rings
 from .errors import GromovWarning, MetricError, SmallPartWarning
 from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
@@ -272,9 +271,7 @@ def partial_zoomout(sx: ShapeMetric, sy: ShapeMetric, T: np.ndarray, *, k_start:
 
     phx, mx = _input_basis(sx, ks[-1])
     phy, _ = _input_basis(sy, k_y(ks[-1]))
-    if sy._input_rings is None or sy._input_rings[0] != rings:
-        sy._input_rings = (rings, ring_neighbourhoods(sy.input, rings))
-    ptr, ids = (readonly(a) for a in sy._input_rings[1])
+    ptr, ids = (readonly(a) for a in _input_rings(sy, int(rings)))
     left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
     T0 = T[left_out]
     with one_blas_thread():   # products of n x k by k x k: a second thread costs more than it gains
