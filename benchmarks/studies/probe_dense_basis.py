@@ -24,19 +24,13 @@ disturbs less than the wall time.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 import gromov
 from gromov.dense import input_zoomout, laplace_beltrami_basis, prolonged_basis
-from gromov.evaluate import GeodesicReference, dense_error
-from gromov.gh import ShapeMetric
-from gromov.metrics.diffusion import correspondence_options
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # benchmarks/: _common and the comparisons
@@ -77,15 +71,8 @@ def main(argv=None) -> int:
     rows = {}
     for name, x, y, truth, sym in probe_dense_refine.cases(Path(args.data),
                                                            Path(args.remeshed) if args.remeshed else None):
-        pts = np.random.default_rng(0).choice(x.n_vertices, min(args.points, x.n_vertices), replace=False)
-        fmm = GeodesicReference(y)
-
-        def score(face, bary):
-            e = 100 * dense_error(face[pts], bary[pts], y, truth[pts], sym, fmm=fmm).errors
-            return {"mean": float(e.mean()), "median": float(np.median(e)), "p97": float(np.percentile(e, 97))}
-
-        opts = correspondence_options("diffusion", None)
-        sx, sy = ShapeMetric(x, "diffusion", metric_options=opts), ShapeMetric(y, "diffusion", metric_options=opts)
+        score = probe_dense_refine.scorer(x, y, truth, sym, args.points)
+        sx, sy = probe_dense_refine.prepared(x, y)
         r = gromov.match(sx, sy, dense="placed", seed=0)
         placed = y.from_input_ids(r.x_to_y_dense_vertex)
         row = {}
@@ -96,10 +83,7 @@ def main(argv=None) -> int:
             row[label] = score(*at_vertices(y, input_zoomout(sx, sy, placed, k_end=k))) | {"seconds": seconds}
         rows[name] = row
         print(name, {k: "{mean:.2f} / {median:.2f} ({seconds:.1f} s)".format(**v) for k, v in row.items()}, flush=True)
-    Path(args.json).write_text(json.dumps({"command": "python benchmarks/studies/probe_dense_basis.py"
-                                           + (" --remeshed R" if args.remeshed else ""),
-                                           "points": args.points, "pairs": rows}, indent=1))
-    print("wrote", args.json)
+    probe_dense_refine.write_rows(args, "probe_dense_basis", rows)
     return 0
 
 

@@ -80,6 +80,33 @@ def cases(root: Path, remeshed: Path | None):
             kids.symmetry(kids.reference)
 
 
+def scorer(x, y, truth, sym, points: int):
+    """``score(face, bary)`` of a map X -> Y: mean, median and 97th percentile of the error x 100
+    / sqrt(area) at ``points`` random vertices of X (seed 0), the better of the direct and the
+    mirrored reading (:func:`gromov.evaluate.dense_error`)."""
+    pts = np.random.default_rng(0).choice(x.n_vertices, min(points, x.n_vertices), replace=False)
+    fmm = GeodesicReference(y)
+
+    def score(face, bary):
+        e = 100 * dense_error(face[pts], bary[pts], y, truth[pts], sym, fmm=fmm).errors
+        return {"mean": float(e.mean()), "median": float(np.median(e)), "p97": float(np.percentile(e, 97))}
+    return score
+
+
+def prepared(x, y):
+    """Both shapes as ``gromov.match`` prepares them for a correspondence."""
+    opts = correspondence_options("diffusion", None)
+    return ShapeMetric(x, "diffusion", metric_options=opts), ShapeMetric(y, "diffusion", metric_options=opts)
+
+
+def write_rows(args, script: str, rows: dict) -> None:
+    """Write ``rows`` (per pair) to ``args.json`` with the command that made them."""
+    Path(args.json).write_text(json.dumps({"command": f"python benchmarks/studies/{script}.py"
+                                           + (" --remeshed R" if args.remeshed else ""),
+                                           "points": args.points, "pairs": rows}, indent=1))
+    print("wrote", args.json)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
@@ -90,15 +117,8 @@ def main(argv=None) -> int:
     warnings.simplefilter("ignore")
     rows = {}
     for name, x, y, truth, sym in cases(Path(args.data), Path(args.remeshed) if args.remeshed else None):
-        pts = np.random.default_rng(0).choice(x.n_vertices, min(args.points, x.n_vertices), replace=False)
-        fmm = GeodesicReference(y)
-
-        def score(face, bary):
-            e = 100 * dense_error(face[pts], bary[pts], y, truth[pts], sym, fmm=fmm).errors
-            return {"mean": float(e.mean()), "median": float(np.median(e)), "p97": float(np.percentile(e, 97))}
-
-        opts = correspondence_options("diffusion", None)
-        sx, sy = ShapeMetric(x, "diffusion", metric_options=opts), ShapeMetric(y, "diffusion", metric_options=opts)
+        score = scorer(x, y, truth, sym, args.points)
+        sx, sy = prepared(x, y)
         row = {}
         for mode in ("placed", "zoomout"):
             r = gromov.match(sx, sy, dense=mode, seed=0)
@@ -111,10 +131,7 @@ def main(argv=None) -> int:
                 row[f"from {start}: {label}"] = score(*at_vertices(y, input_zoomout(sx, sy, T, **kw)))
         rows[name] = row
         print(name, {k: "{mean:.2f} / {median:.2f} / {p97:.1f}".format(**v) for k, v in row.items()}, flush=True)
-    Path(args.json).write_text(json.dumps({"command": "python benchmarks/studies/probe_dense_refine.py"
-                                           + (" --remeshed R" if args.remeshed else ""),
-                                           "points": args.points, "pairs": rows}, indent=1))
-    print("wrote", args.json)
+    write_rows(args, "probe_dense_refine", rows)
     return 0
 
 
