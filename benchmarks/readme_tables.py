@@ -183,7 +183,7 @@ def anchors_table() -> str:
         f"{_secs(big['fpsample_quickfps_s'])} (fpsample, vanilla / QuickFPS) |",
         *collection_rows(load("collection_retrieval.json"), load("collection_resume.json"),
                          load("collection_dask.json")),
-        partial_row(load("partial_mode.json"), load("partial.json")),
+        partial_row(load("partial_refined.json"), load("partial.json")),
         recognition_row(load("recognition_watertight_two_stage.json")),
     ]
     return "\n".join(rows)
