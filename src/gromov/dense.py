@@ -501,7 +501,7 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
         raise ValueError(f"T must have one vertex of Y per input vertex of X, shape "
                          f"({sx.input.n_vertices},), got {T.shape}")
     phx, mx = _input_basis(sx, k_end)
-    phy, _ = _input_basis(sy, k_end)
+    phy, my = _input_basis(sy, k_end)
     k_end = min(k_end, phx.shape[1], phy.shape[1])
     ptr, ids = (readonly(c) for c in _input_rings(sy, rings))
     left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
@@ -512,7 +512,7 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     # Phi_X(v) = Phi_Y(T(v)) C^T holds between shapes of different sizes, and the values are
     # of order 1, so that single precision holds them: half the time of the products, and the
     # maps agree but for near-ties (docs/design/dense.md, "Cost")
-    root_x, root_y = np.sqrt(mx.sum()), np.sqrt(_input_basis(sy, 0)[1].sum())
+    root_x, root_y = np.sqrt(mx.sum()), np.sqrt(my.sum())
     a = readonly((phx[:, :k_end] * root_x).astype(np.float32))
     ma = (mx[:, None] * phx[:, :k_end] / root_x).astype(np.float32)
     phy = (phy[:, :k_end] * root_y).astype(np.float32)
