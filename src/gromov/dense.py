@@ -503,30 +503,45 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     phx, mx = _input_basis(sx, k_end)
     phy, my = _input_basis(sy, k_end)
     k_end = min(k_end, phx.shape[1], phy.shape[1])
-    ptr, ids = (readonly(c) for c in _input_rings(sy, rings))
-    left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
-    kept_x = np.flatnonzero(~left_out)
-    spread = sy.working.vertex_ids        # Y's working vertices, spread over its kept pieces
-    T0 = T[left_out]
     # each basis orthonormal for the mass over the total area (Phi sqrt(A), M / A): the relation
     # Phi_X(v) = Phi_Y(T(v)) C^T holds between shapes of different sizes, and the values are
     # of order 1, so that single precision holds them: half the time of the products, and the
     # maps agree but for near-ties (docs/design/dense.md, "Cost")
     root_x, root_y = np.sqrt(mx.sum()), np.sqrt(my.sum())
-    a = readonly((phx[:, :k_end] * root_x).astype(np.float32))
+    a = (phx[:, :k_end] * root_x).astype(np.float32)
     ma = (mx[:, None] * phx[:, :k_end] / root_x).astype(np.float32)
     phy = (phy[:, :k_end] * root_y).astype(np.float32)
+    steps = [(k, k) for k in range(min(k_start, k_end), k_end + 1, step)]
+    return _zoomout_steps(sx, sy, T, a, ma, phy, steps, rings=rings, global_k=global_k, orthogonal=orthogonal)
+
+
+def _zoomout_steps(sx, sy, T: np.ndarray, a: np.ndarray, ma: np.ndarray, phy: np.ndarray, steps, *,
+                  rings: int = INPUT_RINGS, global_k: int = 0, orthogonal: bool = False) -> np.ndarray:
+    r"""ZoomOut's steps on the input meshes from the map ``T``, as :func:`input_zoomout` and
+    :func:`gromov.partial.partial_zoomout` take them: for each ``(k_X, k_Y)`` of ``steps``,
+    :math:`C = (M_X \Phi_X)_{k_X}^\top \Phi_{Y,k_Y}[T]` (``ma``, ``phy``), then each input
+    vertex of X to the vertex of Y within ``rings`` rings of its image whose row of
+    :math:`\Phi_{Y,k_Y} C^\top` is nearest to its row of :math:`\Phi_{X,k_X}` (``a``); while
+    :math:`k_X \le` ``global_k`` Y's working vertices are searched too. The vertices of X on
+    pieces left out of its working mesh keep their images."""
+    ptr, ids = (readonly(c) for c in _input_rings(sy, rings))
+    left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
+    kept_x = np.flatnonzero(~left_out)
+    spread = sy.working.vertex_ids        # Y's working vertices, spread over its kept pieces
+    T = np.array(T, dtype=np.int64)
+    T0 = T[left_out]
+    a = readonly(np.ascontiguousarray(a))
     with one_blas_thread():   # products of n x k by k x k: a second thread costs more than it gains
-        for k in range(min(k_start, k_end), k_end + 1, step):
-            C = ma[:, :k].T @ phy[T, :k]
+        for kx, ky in steps:
+            C = ma[:, :kx].T @ phy[T, :ky]
             if orthogonal:
                 u, _, vt = np.linalg.svd(C)
                 C = u @ vt
-            b = phy[:, :k] @ C.T
+            b = phy[:, :ky] @ C.T
             T = _nearest_in_rings(a, readonly(b), readonly(T), ptr, ids)
-            if k <= global_k:    # or a far vertex of Y's working mesh, where that is nearer
-                far, d_far = _nearest_rows(a[kept_x, :k], b[spread])
-                here = ((a[kept_x, :k] - b[T[kept_x]]) ** 2).sum(axis=1)
+            if kx <= global_k:    # or a far vertex of Y's working mesh, where that is nearer
+                far, d_far = _nearest_rows(a[kept_x, :kx], b[spread])
+                here = ((a[kept_x, :kx] - b[T[kept_x]]) ** 2).sum(axis=1)
                 move = d_far < here
                 T[kept_x[move]] = spread[far[move]]
             T[left_out] = T0

@@ -50,10 +50,10 @@ from functools import cached_property
 import numpy as np
 from scipy.sparse import csgraph
 
-from ._arrays import one_blas_thread, readonly
+from ._arrays import one_blas_thread
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
-from .dense import _at_vertices, _by_file_id, _input_basis, _input_images, _input_rings, _nearest_in_rings
+from .dense import _at_vertices, _by_file_id, _input_basis, _input_images, _zoomout_steps
 from .errors import GromovWarning, MetricError, SmallPartWarning
 from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
@@ -271,18 +271,9 @@ def partial_zoomout(sx: ShapeMetric, sy: ShapeMetric, T: np.ndarray, *, k_start:
 
     phx, mx = _input_basis(sx, ks[-1])
     phy, _ = _input_basis(sy, k_y(ks[-1]))
-    ptr, ids = (readonly(a) for a in _input_rings(sy, int(rings)))
-    left_out = ~sx.working.source_kept    # a piece left out of the working mesh keeps its map
-    T0 = T[left_out]
-    with one_blas_thread():   # products of n x k by k x k: a second thread costs more than it gains
-        for k in ks:
-            kx, ky = min(k, phx.shape[1]), min(k_y(k), phy.shape[1])
-            C = phx[:, :kx].T @ (mx[:, None] * phy[T, :ky])
-            a = readonly(np.ascontiguousarray(phx[:, :kx]))
-            b = readonly(np.ascontiguousarray(phy[:, :ky] @ C.T))
-            T = _nearest_in_rings(a, b, readonly(T), ptr, ids)
-            T[left_out] = T0
-    return T
+    steps = [(min(k, phx.shape[1]), min(k_y(k), phy.shape[1])) for k in ks]
+    # the bases as they are: the part is the whole's surface at its own scale, not a scaled copy
+    return _zoomout_steps(sx, sy, T, phx, mx[:, None] * phx, phy, steps, rings=int(rings))
 
 
 def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, seed: int = 0,
