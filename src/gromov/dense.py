@@ -65,7 +65,7 @@ ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
 INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS, INPUT_GLOBAL = 20, 180, 4, 2, 32
 #: The input meshes' eigenpairs from the working mesh's (:func:`prolonged_basis`): how many
 #: working eigenvectors per eigenpair wanted, and the subspace iterations on the input mesh.
-BASIS_GUARD, BASIS_ITERATIONS = 1.3, 1
+BASIS_GUARD, BASIS_ITERATIONS = 1.1, 1
 
 
 @dataclass(frozen=True, eq=False)
