@@ -115,6 +115,27 @@ def test_anchored_map_with_exact_landmark_distances_is_the_identity():
     assert np.mean(t == np.arange(m.n_vertices)) > 0.95
 
 
+def test_anchored_map_sets_aside_each_pairs_own_corrupted_landmarks():
+    """Least trimmed squares per pair: when each vertex's distances to a different fifth of
+    the landmarks are corrupted (shortened, as a shortcut would), the true vertex still fits the
+    other landmarks exactly and is chosen wherever it is among the candidates; one landmark set
+    trimmed for all vertices alike cannot set aside corruptions that differ per vertex."""
+    m = icosphere(3)
+    d = gromov.metric_solver(m, "geodesic").pairwise()
+    rng = np.random.default_rng(1)
+    L = rng.choice(m.n_vertices, 40, replace=False)
+    ax = d[:, L].copy()
+    for v in range(m.n_vertices):
+        hit = rng.choice(len(L), 8, replace=False)
+        ax[v, hit] *= rng.uniform(0.2, 0.6, size=len(hit))
+    per_pair = anchored_map(ax, d[:, L], candidates=32)
+    assert np.mean(per_pair == np.arange(m.n_vertices)) > 0.99
+    alike = anchored_map(ax, d[:, L], candidates=0)
+    assert np.mean(alike == np.arange(m.n_vertices)) < 0.9
+    with pytest.raises(ValueError, match="candidates"):
+        anchored_map(ax, d[:, L], candidates=-1)
+
+
 def test_point_clouds_get_images_at_points():
     x = bumpy_torus()
     y, perm = permutation_of(x, 5)

@@ -16,10 +16,10 @@ samples with their images, Y's samples with theirs). Two refinements make it pre
   :data:`DENSE_TAU_SCALE` times the diffusion time the samples were matched at, from the same
   eigenpairs: the coarse scale finds the right correspondence, the finer one places a point
   between its neighbours more sharply;
-- **trimmed landmarks.** A landmark whose distances disagree with the map everywhere (an
-  image placed off by the search, or a sample beside a change of topology) is set aside:
-  ``DENSE_ROUNDS`` times, the fraction ``DENSE_KEEP`` of the landmarks with the smallest RMS
-  residual over all vertices is kept (least trimmed squares over landmarks).
+- **trimmed landmarks.** Each vertex's image is chosen among its ``DENSE_CANDIDATES`` best by
+  the sum above, by the sum over the fraction ``DENSE_KEEP`` of the landmarks that fit that
+  pair best (least trimmed squares per pair): a landmark placed off by the search, or one whose
+  distances a weld or a glued contact shortened on one shape, is set aside where it disagrees.
 
 Input vertices are then carried through the working meshes: an input vertex of X lies on a
 working face; its three corners' images, weighted by its barycentric coordinates, give a
@@ -45,13 +45,16 @@ from .resolution import gather
 
 __all__ = ["DenseMap", "dense_maps", "anchored_map", "landmark_distances", "zoomout", "input_zoomout",
            "laplace_beltrami_basis", "prolonged_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
-           "DENSE_REFINE", "REFINEMENTS", "place_small_pieces", "PIECE_PATCH"]
+           "DENSE_REFINE", "DENSE_CANDIDATES", "REFINEMENTS", "place_small_pieces", "PIECE_PATCH"]
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
 #: Fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
+#: Candidate images per vertex, re-ranked by their own trimmed residual (:func:`anchored_map`;
+#: 0: the landmarks trimmed over all vertices alike).
+DENSE_CANDIDATES = 32
 #: Refinements of the placed map (:func:`dense_maps`' ``refine``): "input" (:func:`input_zoomout`
 #: on the input meshes), "zoomout" (:func:`zoomout` on the working meshes) or None.
 REFINEMENTS = ("input", "zoomout", None)
@@ -129,12 +132,24 @@ def landmark_distances(s, points, tau_scale: float = DENSE_TAU_SCALE) -> np.ndar
 
 
 def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
-                 rounds: int = DENSE_ROUNDS) -> np.ndarray:
+                 rounds: int = DENSE_ROUNDS, candidates: int = DENSE_CANDIDATES) -> np.ndarray:
     r"""Working vertex of Y for each working vertex of X, from distances to paired landmarks.
 
-    :math:`T(v) = \arg\min_w \sum_{l \in K} (a^Y_{wl} - a^X_{vl})^2` over a landmark subset
-    :math:`K`: all of them first, then ``rounds`` times the ``ceil(keep L)`` landmarks with the
-    smallest residual :math:`(\frac1n \sum_v (a^Y_{T(v) l} - a^X_{vl})^2)^{1/2}`.
+    With ``candidates`` K > 0 (the default), least trimmed squares per pair (Rousseeuw, "Least
+    median of squares regression", JASA 79, 1984): among the K vertices w with the smallest
+    :math:`\sum_l (a^Y_{wl} - a^X_{vl})^2` over all L landmarks,
+
+    .. math:: T(v) = \arg\min_w \sum_{l \in H(v, w)} (a^Y_{wl} - a^X_{vl})^2 ,
+
+    :math:`H(v, w)` the ``ceil(keep L)`` landmarks with the smallest squared residuals for that
+    pair. A weld or a glued contact shortens, on one shape only, the distances from a vertex to
+    the landmarks whose paths cross it: for the true pair those are its largest residuals, and
+    they are set aside for that pair alone (``docs/design/dense.md``).
+
+    With K = 0, :math:`T(v) = \arg\min_w \sum_{l \in S} (a^Y_{wl} - a^X_{vl})^2` over one
+    landmark subset S for all vertices: all landmarks first, then ``rounds`` times the ``ceil(keep
+    L)`` landmarks with the smallest residual :math:`(\frac1n \sum_v (a^Y_{T(v) l} -
+    a^X_{vl})^2)^{1/2}`.
 
     Parameters
     ----------
@@ -144,6 +159,8 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
         Distances from Y's working vertices to the paired landmarks on Y.
     keep : float in (0, 1], default DENSE_KEEP
     rounds : int, default DENSE_ROUNDS
+        With ``candidates=0`` only.
+    candidates : int, default DENSE_CANDIDATES
 
     Returns
     -------
@@ -160,6 +177,10 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     ax32, ay32 = ax.astype(np.float32), ay.astype(np.float32)
     L = ax.shape[1]
     h = max(3, int(np.ceil(keep * L - 1e-9)))
+    if candidates < 0:
+        raise ValueError(f"candidates must be non-negative, got {candidates!r}")
+    if candidates > 0:
+        return _trimmed_per_pair(ax32, ay32, min(h, L), int(candidates))
     idx = np.arange(L)
     for r in range(int(rounds) + 1):
         a, b = ax32[:, idx], ay32[:, idx]
@@ -172,6 +193,27 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
         e = ((ay[T] - ax) ** 2).mean(axis=0)
         idx = np.sort(np.argsort(e, kind="stable")[:h])
     return T.astype(np.int64)
+
+
+def _trimmed_per_pair(ax: np.ndarray, ay: np.ndarray, h: int, k: int, chunk: int = 256) -> np.ndarray:
+    """:func:`anchored_map` with candidates: the ``k`` best rows of ``ay`` for each row of ``ax``
+    by the full sum of squares, then the one with the smallest sum of its ``h`` smallest
+    squared residuals."""
+    cost = ax @ ay.T
+    cost *= -2.0
+    cost += (ay * ay).sum(1)[None, :]
+    k = min(k, len(ay))
+    cand = np.argpartition(cost, k - 1, axis=1)[:, :k] if k < len(ay) else np.broadcast_to(
+        np.arange(len(ay)), cost.shape)
+    T = np.empty(len(ax), dtype=np.int64)
+    for s in range(0, len(ax), chunk):
+        c = cand[s:s + chunk]
+        r = ay[c] - ax[s:s + chunk, None, :]
+        r *= r
+        if h < r.shape[2]:
+            r = np.partition(r, h - 1, axis=2)[:, :, :h]
+        T[s:s + chunk] = c[np.arange(len(c)), np.argmin(r.sum(axis=2), axis=1)]
+    return T
 
 
 def _basis(s, k: int):
