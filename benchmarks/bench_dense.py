@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 import gromov
+import gromov.dense
 from gromov.evaluate import GeodesicReference, dense_error
 from gromov.experiments import datasets
 from gromov.experiments.reproduce import reflection_map
@@ -305,17 +306,22 @@ def main(argv=None):
     ap.add_argument("--dense", choices=("input", "zoomout", "placed"), default="input",
                     help="our dense map: refined on the input meshes (default), on the working meshes, "
                          "or placed only")
+    ap.add_argument("--candidates", type=int, default=None,
+                    help="gromov.dense.DENSE_CANDIDATES for this run (default: the package's)")
     ap.add_argument("--quick", action="store_true", help=f"3 kids, classes {','.join(QUICK_CLASSES)}")
     ap.add_argument("--json", default=str(HERE / "results" / "dense.json"))
     args = ap.parse_args(argv)
     DENSE["mode"] = args.dense
+    if args.candidates is not None:
+        gromov.dense.DENSE_CANDIDATES = args.candidates
     classes = list(QUICK_CLASSES) if args.quick else [c for c in args.classes.split(",") if c]
     unknown = sorted(set(classes) - set(TOSCA_PAIRS))
     if unknown:
         ap.error(f"unknown or pose-0-less TOSCA classes {unknown}; choose from {','.join(TOSCA_PAIRS)}")
     n_kids = 3 if args.quick else args.topkids
     res = {"gromov": {"version": gromov.__version__, "match": {"metric": "diffusion", "dense": args.dense,
-                                                                "n_samples": 100}},
+                                                                "n_samples": 100,
+                                                                "candidates": gromov.dense.DENSE_CANDIDATES}},
            "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS}
     t0 = time.perf_counter()
     if n_kids > 0:

@@ -16,10 +16,11 @@ samples with their images, Y's samples with theirs). Two refinements make it pre
   :data:`DENSE_TAU_SCALE` times the diffusion time the samples were matched at, from the same
   eigenpairs: the coarse scale finds the right correspondence, the finer one places a point
   between its neighbours more sharply;
-- **trimmed landmarks.** Each vertex's image is chosen among its ``DENSE_CANDIDATES`` best by
-  the sum above, by the sum over the fraction ``DENSE_KEEP`` of the landmarks that fit that
-  pair best (least trimmed squares per pair): a landmark placed off by the search, or one whose
-  distances a weld or a glued contact shortened on one shape, is set aside where it disagrees.
+- **trimmed landmarks.** A landmark whose distances disagree with the map everywhere (an
+  image placed off by the search, or a sample beside a change of topology) is set aside:
+  ``DENSE_ROUNDS`` times, the fraction ``DENSE_KEEP`` of the landmarks with the smallest RMS
+  residual over all vertices is kept (least trimmed squares over landmarks). With
+  ``DENSE_CANDIDATES`` > 0 the trimming is per pair instead (:func:`anchored_map`).
 
 Input vertices are then carried through the working meshes: an input vertex of X lies on a
 working face; its three corners' images, weighted by its barycentric coordinates, give a
@@ -52,9 +53,10 @@ DENSE_TAU_SCALE = 0.5
 #: Fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
-#: Candidate images per vertex, re-ranked by their own trimmed residual (:func:`anchored_map`;
-#: 0: the landmarks trimmed over all vertices alike).
-DENSE_CANDIDATES = 32
+#: Candidate images per vertex, re-ranked by their own trimmed residual (:func:`anchored_map`);
+#: 0, the default: the landmarks trimmed over all vertices alike. 32 repairs welded shapes and
+#: loses on other TOPKIDS pairs (docs/design/dense.md, "The landmarks trimmed per pair").
+DENSE_CANDIDATES = 0
 #: Refinements of the placed map (:func:`dense_maps`' ``refine``): "input" (:func:`input_zoomout`
 #: on the input meshes), "zoomout" (:func:`zoomout` on the working meshes) or None.
 REFINEMENTS = ("input", "zoomout", None)
@@ -132,10 +134,10 @@ def landmark_distances(s, points, tau_scale: float = DENSE_TAU_SCALE) -> np.ndar
 
 
 def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
-                 rounds: int = DENSE_ROUNDS, candidates: int = DENSE_CANDIDATES) -> np.ndarray:
+                 rounds: int = DENSE_ROUNDS, candidates: int | None = None) -> np.ndarray:
     r"""Working vertex of Y for each working vertex of X, from distances to paired landmarks.
 
-    With ``candidates`` K > 0 (the default), least trimmed squares per pair (Rousseeuw, "Least
+    With ``candidates`` K > 0, least trimmed squares per pair (Rousseeuw, "Least
     median of squares regression", JASA 79, 1984): among the K vertices w with the smallest
     :math:`\sum_l (a^Y_{wl} - a^X_{vl})^2` over all L landmarks,
 
@@ -146,7 +148,7 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     the landmarks whose paths cross it: for the true pair those are its largest residuals, and
     they are set aside for that pair alone (``docs/design/dense.md``).
 
-    With K = 0, :math:`T(v) = \arg\min_w \sum_{l \in S} (a^Y_{wl} - a^X_{vl})^2` over one
+    With K = 0 (the default), :math:`T(v) = \arg\min_w \sum_{l \in S} (a^Y_{wl} - a^X_{vl})^2` over one
     landmark subset S for all vertices: all landmarks first, then ``rounds`` times the ``ceil(keep
     L)`` landmarks with the smallest residual :math:`(\frac1n \sum_v (a^Y_{T(v) l} -
     a^X_{vl})^2)^{1/2}`.
@@ -160,7 +162,8 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     keep : float in (0, 1], default DENSE_KEEP
     rounds : int, default DENSE_ROUNDS
         With ``candidates=0`` only.
-    candidates : int, default DENSE_CANDIDATES
+    candidates : int, optional
+        Default: :data:`DENSE_CANDIDATES`, read at each call.
 
     Returns
     -------
@@ -177,6 +180,7 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     ax32, ay32 = ax.astype(np.float32), ay.astype(np.float32)
     L = ax.shape[1]
     h = max(3, int(np.ceil(keep * L - 1e-9)))
+    candidates = DENSE_CANDIDATES if candidates is None else candidates
     if candidates < 0:
         raise ValueError(f"candidates must be non-negative, got {candidates!r}")
     if candidates > 0:
