@@ -187,11 +187,7 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
         return _trimmed_per_pair(ax32, ay32, min(h, L), int(candidates))
     idx = np.arange(L)
     for r in range(int(rounds) + 1):
-        a, b = ax32[:, idx], ay32[:, idx]
-        cost = a @ b.T
-        cost *= -2.0
-        cost += (b * b).sum(1)[None, :]   # + |a_v|^2, constant per row
-        T = np.argmin(cost, axis=1)
+        T = np.argmin(_sum_of_squares(ax32[:, idx], ay32[:, idx]), axis=1)
         if r == rounds or h >= L:
             break
         e = ((ay[T] - ax) ** 2).mean(axis=0)
@@ -199,13 +195,20 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     return T.astype(np.int64)
 
 
+def _sum_of_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    r"""``(n_a, n_b)``: :math:`\lVert b_w - a_v \rVert^2 - \lVert a_v \rVert^2` for every pair of
+    rows (the row's own constant left out: the same argmin per row), by one product."""
+    cost = a @ b.T
+    cost *= -2.0
+    cost += (b * b).sum(1)[None, :]
+    return cost
+
+
 def _trimmed_per_pair(ax: np.ndarray, ay: np.ndarray, h: int, k: int, chunk: int = 256) -> np.ndarray:
     """:func:`anchored_map` with candidates: the ``k`` best rows of ``ay`` for each row of ``ax``
     by the full sum of squares, then the one with the smallest sum of its ``h`` smallest
     squared residuals."""
-    cost = ax @ ay.T
-    cost *= -2.0
-    cost += (ay * ay).sum(1)[None, :]
+    cost = _sum_of_squares(ax, ay)
     k = min(k, len(ay))
     cand = np.argpartition(cost, k - 1, axis=1)[:, :k] if k < len(ay) else np.broadcast_to(
         np.arange(len(ay)), cost.shape)
