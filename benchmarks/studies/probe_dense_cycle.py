@@ -59,14 +59,9 @@ EPS = 0.05
 GROW = 2.0
 
 
-def mean_edge(m: gromov.Mesh) -> float:
-    e = m.vertices[m.faces[:, [1, 2, 0]]] - m.vertices[m.faces]
-    return float(np.linalg.norm(e, axis=2).mean())
-
-
 def uncovered(src: gromov.Mesh, dst: gromov.Mesh, T: np.ndarray) -> float:
     """Area fraction of ``dst`` farther than GROW mean edges of ``src`` (scaled) from every T(v)."""
-    r = GROW * mean_edge(src) * np.sqrt(dst.area / src.area)
+    r = GROW * src.mean_edge_length * np.sqrt(dst.area / src.area)
     d, _ = cKDTree(dst.vertices[T]).query(dst.vertices)
     m = dst.vertex_areas
     return float(m[d > r].sum() / m.sum())
