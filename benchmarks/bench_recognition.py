@@ -328,7 +328,7 @@ def combined_matrix(files, args) -> dict:
     S = g.spectral
     miss = np.isnan(D)
     D[miss] = np.nanmax(D) + 1.0 + S[miss] / (S.max() + 1e-300)
-    return {"combined": D, "spectral": S, "trimmed": g.trimmed, "complete": not miss.any(), "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
+    return {"combined": D, "spectral": S, "trimmed": g.trimmed, "gh": g.relative, "complete": not miss.any(), "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
             "seconds": wall, "seconds_prepare": g.seconds_prepare, "seconds_match": g.seconds_match}
 
 
@@ -449,7 +449,7 @@ def main(argv=None) -> None:
             if cache is not None:
                 np.savez(cache / f"combined-{name}-pc{per}-s{args.combined_samples}-c{args.candidates or 0}"
                                  f"-seed{args.seed}.npz", files=np.array([files[i].name for i in csub]),
-                         combined=g["combined"], spectral=g["spectral"], trimmed=g["trimmed"])
+                         combined=g["combined"], spectral=g["spectral"], trimmed=g["trimmed"], gh=g["gh"])
             row = (f"gromov --units area --samples {args.combined_samples} --rank-by combined"
                    + (f" --candidates {args.candidates}" if args.candidates else ""))
             sc = scores(g["combined"], labels[csub])
