@@ -1,0 +1,139 @@
+"""The two-stage search against brute force, read off one complete matrix of a collection.
+
+Run:  .venv/bin/python benchmarks/studies/recognition_two_stage.py --cache DIR --bench JSON
+          [--collection watertight] [--candidates 10,20,30,40,60,80] [--top 10]
+          [--json benchmarks/studies/recognition_two_stage.json]
+
+after ``benchmarks/bench_recognition.py --collections watertight --methods shapedna,hks,combined
+--per-class 0 --combined-per-class 0 --cache DIR --json JSON``, which matches *every* pair of the
+collection (brute force) and keeps the matrices in ``DIR`` (``combined-<collection>-pc0-s50-c0-seed0.npz``:
+the spectral distance S, the trimmed distortion G, the GH estimate and the combined ranking
+S^w G^(1-w); ``descriptors/<collection>/``: the input-mesh Shape-DNA and pooled HKS).
+
+**Two stages, exactly.** ``gh_matrix(candidates=C)`` matches the pairs in which one shape is among
+the other's C nearest by S (``gromov.experiments.pairwise._candidate_pairs``), and a matched pair's
+values are the full matrix's (tested in tests/test_spectrum.py), so the two-stage result for any C
+is the brute-force matrix with the other pairs removed. For each C: the pairs matched, and per
+query whether its ``--top`` nearest (by the combined ranking; unmatched pairs after every matched
+one, as ``bench_recognition.py`` ranks them) are brute force's, as a list (same order) and as a set;
+the time a two-stage run would take at the brute-force run's measured cost per pair and per shape.
+
+**Rankings of the complete matrix.** Nearest neighbour, first and second tier, EER (one threshold
+over all pairs) and nearest neighbour per class, for the combined ranking, its two factors, the GH
+estimate and the two per-shape descriptors of the benchmark.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_recognition import collection, euclidean, retrieval_scores, scores  # noqa: E402
+
+from gromov.experiments.pairwise import _candidate_pairs  # noqa: E402
+
+
+def ranked_after(D: np.ndarray, S: np.ndarray, matched: np.ndarray) -> np.ndarray:
+    """``D`` where ``matched``, else after every matched value in the order of ``S``: how a two-stage
+    matrix is ranked (``bench_recognition.combined_matrix``)."""
+    out = np.where(matched, D, np.nanmax(D[matched]) + 1.0 + S / (S.max() + 1e-300))
+    np.fill_diagonal(out, 0.0)
+    return out
+
+
+def top_lists(D: np.ndarray, top: int) -> list[np.ndarray]:
+    """Each query's ``top`` nearest others in order (ties by index)."""
+    n = len(D)
+    out = []
+    for i in range(n):
+        others = np.r_[0:i, i + 1:n]
+        out.append(others[np.argsort(D[i, others], kind="stable")[:top]])
+    return out
+
+
+def two_stage(D: np.ndarray, S: np.ndarray, c: int, top: int, labels) -> dict:
+    """The two-stage search with ``c`` candidates, read off the complete matrix ``D``."""
+    n = len(D)
+    matched = np.zeros((n, n), dtype=bool)
+    pairs = _candidate_pairs(S, c)
+    for i, j in pairs:
+        matched[i, j] = matched[j, i] = True
+    np.fill_diagonal(matched, True)
+    R = ranked_after(D, S, matched)
+    brute, ours = top_lists(D, top), top_lists(R, top)
+    same_list = np.array([np.array_equal(a, b) for a, b in zip(brute, ours)])
+    same_set = np.array([set(a.tolist()) == set(b.tolist()) for a, b in zip(brute, ours)])
+    overlap = np.array([len(set(a.tolist()) & set(b.tolist())) / top for a, b in zip(brute, ours)])
+    r = retrieval_scores(R, labels)
+    return {"candidates": c, "pairs": len(pairs), "fraction_of_pairs": len(pairs) / (n * (n - 1) // 2),
+            "top_equal_list": float(same_list.mean()), "top_equal_set": float(same_set.mean()),
+            "top_overlap": float(overlap.mean()), "queries_differing": int((~same_set).sum()),
+            "nn": float(np.mean(r["nn"])), "ft": float(np.nanmean(r["ft"]))}
+
+
+def per_class_nn(D: np.ndarray, labels) -> dict:
+    r = retrieval_scores(0.5 * (D + D.T), labels)
+    labels = np.asarray(labels)
+    return {c: float(r["nn"][labels == c].mean()) for c in sorted(set(labels.tolist()))}
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cache", required=True, type=Path)
+    ap.add_argument("--bench", required=True, type=Path, help="the brute-force run's results file")
+    ap.add_argument("--data", default=None)
+    ap.add_argument("--collection", default="watertight")
+    ap.add_argument("--candidates", default="10,20,30,40,60,80")
+    ap.add_argument("--top", type=int, default=10)
+    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "recognition_two_stage.json"))
+    args = ap.parse_args(argv)
+    import os
+
+    data = args.data or os.environ.get("GROMOV_DATA") or str(ROOT.parent / "shared" / "data")
+    files, labels = collection(data, args.collection)
+    z = np.load(args.cache / f"combined-{args.collection}-pc0-s50-c0-seed0.npz")
+    names = [str(x) for x in z["files"]]
+    if names != [f.name for f in files]:
+        raise SystemExit("the cached matrix is not of this collection's files, in this order")
+    D, S, G, GH = (np.asarray(z[k], dtype=np.float64) for k in ("combined", "spectral", "trimmed", "gh"))
+    if np.isnan(D).any():
+        raise SystemExit("the cached matrix is not complete: run the benchmark without --candidates")
+    folder = args.cache / "descriptors" / args.collection
+    desc = [np.load(folder / f.name.replace(".off.gz", ".npz")) for f in files]
+    mats = {"combined": D, "spectral (Shape-DNA, working mesh)": S, "trimmed distortion": G, "GH estimate": GH,
+            "Shape-DNA (input mesh)": euclidean(np.stack([d["shapedna"] for d in desc])),
+            "pooled HKS (input mesh)": euclidean(np.stack([d["hks"] for d in desc]))}
+    bench = json.loads(args.bench.read_text())
+    row = next(v for k, v in bench["collections"][args.collection]["rows"].items() if k.startswith("gromov --units"))
+    per_pair = row["seconds_match"] / row["pairs_matched"]   # wall seconds per pair with the run's jobs
+    n = len(files)
+    res = {"command": "python benchmarks/studies/recognition_two_stage.py " + " ".join(argv if argv is not None
+                                                                                          else sys.argv[1:]),
+           "collection": args.collection, "shapes": n, "top": args.top,
+           "brute_force": {"pairs": n * (n - 1) // 2, "seconds": row["seconds"],
+                           "seconds_prepare": row["seconds_prepare"], "seconds_match": row["seconds_match"],
+                           "jobs": row["jobs"], "wall_seconds_per_pair": per_pair},
+           "rankings": {k: {**scores(M, labels), "nn_per_class": per_class_nn(M, labels)} for k, M in mats.items()},
+           "two_stage": []}
+    for c in (int(x) for x in args.candidates.split(",")):
+        t = two_stage(D, S, c, args.top, labels)
+        t["estimated_seconds"] = row["seconds_prepare"] + t["pairs"] * per_pair
+        res["two_stage"].append(t)
+    Path(args.json).write_text(json.dumps(res, indent=1) + "\n")
+    for k, s in res["rankings"].items():
+        print(f"{k:<36} NN {s['nn']:.3f} FT {s['ft']:.3f} ST {s['st']:.3f} EER {s['eer']:.3f}")
+    for t in res["two_stage"]:
+        print(f"C = {t['candidates']:>3}: {t['pairs']:>5} pairs ({t['fraction_of_pairs']:.2f}), top-{args.top} "
+              f"equal {t['top_equal_list']:.3f} (as sets {t['top_equal_set']:.3f}, overlap {t['top_overlap']:.3f}), "
+              f"NN {t['nn']:.3f}, est. {t['estimated_seconds'] / 60:.1f} min")
+
+
+if __name__ == "__main__":
+    main()
