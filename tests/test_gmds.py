@@ -753,3 +753,12 @@ def test_anchor_rows_are_kept_for_the_samples_only():
     assert s._anchors(Q) is not s._anchors(Q)                # other vertices: afresh
     d = s.distances[np.ix_(P[:5], P)]
     np.testing.assert_array_equal(_anchored(*rows, d), anchored_images(s.distances, P, d))
+
+
+def test_gather_block_is_the_submatrix():
+    from gromov._gmds_kernel import gather_block
+
+    rng = np.random.default_rng(3)
+    A = rng.random((40, 40))
+    idx = np.unique(rng.integers(0, 40, 17))
+    assert np.array_equal(gather_block(A, idx), A[np.ix_(idx, idx)])

@@ -578,6 +578,19 @@ def _place_and_descend(dx, DY, start, max_sweeps, R, C, U, block, cap, ratio):
     return img, f
 
 
+@njit(cache=True, nogil=True)
+def gather_block(A, idx):
+    """``A[idx][:, idx]`` in one pass (a row's entries gathered while it is in cache): the
+    initial search's distances on a vertex subset, made for every pair of shapes."""
+    n = idx.shape[0]
+    out = np.empty((n, n), A.dtype)
+    for a in range(n):
+        row = A[idx[a]]
+        for b in range(n):
+            out[a, b] = row[idx[b]]
+    return out
+
+
 #: Interleaved slices of the candidates per thread in :func:`coarse_starts`.
 CHUNKS_PER_THREAD = 4
 

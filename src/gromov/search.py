@@ -362,7 +362,7 @@ def _on_subset(DY: np.ndarray, vertices, candidates: np.ndarray):
     dom = np.union1d(np.asarray(vertices, dtype=np.int64), candidates)
     if len(dom) >= len(DY):
         return None
-    block = np.asarray(DY, dtype=np.float64).take(dom, axis=0).take(dom, axis=1)   # rows, then columns
+    block = _kernel.gather_block(readonly(np.asarray(DY, dtype=np.float64)), dom)
     return dom, block, np.searchsorted(dom, candidates)
 
 
