@@ -84,12 +84,60 @@ def per_class_nn(D: np.ndarray, labels) -> dict:
     return {c: float(r["nn"][labels == c].mean()) for c in sorted(set(labels.tolist()))}
 
 
+def load(cache: Path, data: str, name: str) -> tuple[dict, np.ndarray]:
+    """The complete matrices of one collection (``combined`` first), and its labels."""
+    files, labels = collection(data, name)
+    z = np.load(cache / f"combined-{name}-pc0-s50-c0-seed0.npz")
+    if [str(x) for x in z["files"]] != [f.name for f in files]:
+        raise SystemExit(f"the cached {name} matrix is not of this collection's files, in this order")
+    D, S, G, GH = (np.asarray(z[k], dtype=np.float64) for k in ("combined", "spectral", "trimmed", "gh"))
+    if np.isnan(D).any():
+        raise SystemExit(f"the cached {name} matrix is not complete: run the benchmark without --candidates")
+    folder = cache / "descriptors" / name
+    desc = [np.load(folder / f.name.replace(".off.gz", ".npz")) for f in files]
+    return {"combined": D, "spectral": S, "trimmed": G, "gh": GH,
+            "dna_input": euclidean(np.stack([d["shapedna"] for d in desc])),
+            "hks_input": euclidean(np.stack([d["hks"] for d in desc]))}, labels
+
+
+#: The pair-local rankings compared on all collections together: S^w G^(1-w) for each per-shape
+#: distance S and GMDS statistic G of the same matches (w = 0: G alone).
+SIGNATURES = ("spectral", "dna_input", "hks_input")
+STATISTICS = ("trimmed", "gh")
+WEIGHTS = (0.0, 0.15, 0.25, 0.35, 0.5, 0.65)
+
+
+def objective(s: dict) -> float:
+    """J = mean(1 - NN, 1 - first tier, EER): the lower, the better (recognition_defaults.py's)."""
+    return float(np.mean([1.0 - s["nn"], 1.0 - s["ft"], s["eer"]]))
+
+
+def pair_local(mats: dict, labs: dict) -> list[dict]:
+    """Every S^w G^(1-w) scored on the collections together (pooled NN, FT, EER) and on each."""
+    from bench_recognition import pooled_scores
+
+    rows = []
+    for sig in SIGNATURES:
+        for stat in STATISTICS:
+            for w in WEIGHTS:
+                if w == 0.0 and sig != SIGNATURES[0]:
+                    continue
+                ranked = {c: m[sig] ** w * m[stat] ** (1.0 - w) for c, m in mats.items()}
+                pooled = pooled_scores(ranked, labs)
+                rows.append({"signature": sig if w else None, "statistic": stat, "w": w,
+                             "pooled": {**pooled, "J": objective(pooled)},
+                             **{c: scores(ranked[c], labs[c]) for c in ranked}})
+    return sorted(rows, key=lambda r: r["pooled"]["J"])
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", required=True, type=Path)
     ap.add_argument("--bench", required=True, type=Path, help="the brute-force run's results file")
     ap.add_argument("--data", default=None)
-    ap.add_argument("--collection", default="watertight")
+    ap.add_argument("--collection", default="watertight", help="the two-stage search's collection")
+    ap.add_argument("--with", dest="others", default="", help="comma-separated: more collections in the cache, "
+                    "scored with it for the pair-local rankings")
     ap.add_argument("--candidates", default="10,20,30,40,60,80")
     ap.add_argument("--top", type=int, default=10)
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "recognition_two_stage.json"))
@@ -97,42 +145,40 @@ def main(argv=None) -> None:
     import os
 
     data = args.data or os.environ.get("GROMOV_DATA") or str(ROOT.parent / "shared" / "data")
-    files, labels = collection(data, args.collection)
-    z = np.load(args.cache / f"combined-{args.collection}-pc0-s50-c0-seed0.npz")
-    names = [str(x) for x in z["files"]]
-    if names != [f.name for f in files]:
-        raise SystemExit("the cached matrix is not of this collection's files, in this order")
-    D, S, G, GH = (np.asarray(z[k], dtype=np.float64) for k in ("combined", "spectral", "trimmed", "gh"))
-    if np.isnan(D).any():
-        raise SystemExit("the cached matrix is not complete: run the benchmark without --candidates")
-    folder = args.cache / "descriptors" / args.collection
-    desc = [np.load(folder / f.name.replace(".off.gz", ".npz")) for f in files]
-    mats = {"combined": D, "spectral (Shape-DNA, working mesh)": S, "trimmed distortion": G, "GH estimate": GH,
-            "Shape-DNA (input mesh)": euclidean(np.stack([d["shapedna"] for d in desc])),
-            "pooled HKS (input mesh)": euclidean(np.stack([d["hks"] for d in desc]))}
+    names = [args.collection] + [c for c in args.others.split(",") if c]
+    loaded = {c: load(args.cache, data, c) for c in names}
+    mats, labs = {c: m for c, (m, _) in loaded.items()}, {c: lab for c, (_, lab) in loaded.items()}
+    M, labels = mats[args.collection], labs[args.collection]
+    D, S = M["combined"], M["spectral"]
     bench = json.loads(args.bench.read_text())
     row = next(v for k, v in bench["collections"][args.collection]["rows"].items() if k.startswith("gromov --units"))
     per_pair = row["seconds_match"] / row["pairs_matched"]   # wall seconds per pair with the run's jobs
-    n = len(files)
+    n = len(D)
     res = {"command": "python benchmarks/studies/recognition_two_stage.py " + " ".join(argv if argv is not None
                                                                                           else sys.argv[1:]),
            "collection": args.collection, "shapes": n, "top": args.top,
            "brute_force": {"pairs": n * (n - 1) // 2, "seconds": row["seconds"],
                            "seconds_prepare": row["seconds_prepare"], "seconds_match": row["seconds_match"],
                            "jobs": row["jobs"], "wall_seconds_per_pair": per_pair},
-           "rankings": {k: {**scores(M, labels), "nn_per_class": per_class_nn(M, labels)} for k, M in mats.items()},
+           "rankings": {c: {k: {**scores(X, labs[c]), "nn_per_class": per_class_nn(X, labs[c])}
+                            for k, X in m.items()} for c, m in mats.items()},
            "two_stage": []}
     for c in (int(x) for x in args.candidates.split(",")):
         t = two_stage(D, S, c, args.top, labels)
         t["estimated_seconds"] = row["seconds_prepare"] + t["pairs"] * per_pair
         res["two_stage"].append(t)
+    res["pair_local"] = pair_local(mats, labs)
     Path(args.json).write_text(json.dumps(res, indent=1) + "\n")
-    for k, s in res["rankings"].items():
-        print(f"{k:<36} NN {s['nn']:.3f} FT {s['ft']:.3f} ST {s['st']:.3f} EER {s['eer']:.3f}")
+    for c, m in res["rankings"].items():
+        for k, s in m.items():
+            print(f"{c:<11} {k:<11} NN {s['nn']:.3f} FT {s['ft']:.3f} ST {s['st']:.3f} EER {s['eer']:.3f}")
     for t in res["two_stage"]:
         print(f"C = {t['candidates']:>3}: {t['pairs']:>5} pairs ({t['fraction_of_pairs']:.2f}), top-{args.top} "
               f"equal {t['top_equal_list']:.3f} (as sets {t['top_equal_set']:.3f}, overlap {t['top_overlap']:.3f}), "
               f"NN {t['nn']:.3f}, est. {t['estimated_seconds'] / 60:.1f} min")
+    for r in res["pair_local"][:12]:
+        per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
+        print(f"J {r['pooled']['J']:.4f}  {r['signature'] or '-':<10} {r['statistic']:<8} w {r['w']:.2f}  {per}")
 
 
 if __name__ == "__main__":
