@@ -184,7 +184,7 @@ def anchors_table() -> str:
         *collection_rows(load("collection_retrieval.json"), load("collection_resume.json"),
                          load("collection_dask.json")),
         partial_row(load("partial_refined.json"), load("partial.json")),
-        recognition_row(load("recognition_watertight_two_stage.json")),
+        recognition_row(load("recognition_watertight_full.json")),
     ]
     return "\n".join(rows)
 
@@ -203,17 +203,23 @@ def partial_row(mode: dict, old: dict) -> str:
 
 
 def recognition_row(r: dict) -> str:
-    """bench_recognition.py on the whole watertight collection: gromov's combined ranking in two
-    stages beside Shape-DNA and the pooled HKS, as a row of the anchors table."""
+    """bench_recognition.py on the whole watertight collection: gromov's combined ranking (every
+    pair, or in two stages) beside Shape-DNA and the pooled HKS, as a row of the anchors table."""
     c = r["collections"]["watertight"]
     rows = c["rows"]
     name, ours = next((k, v) for k, v in rows.items() if k.startswith("gromov --units area"))
     dna, hks = rows["shapedna"], rows["hks"]
+    pairs = c["shapes"] * (c["shapes"] - 1) // 2
+    which = "all" if ours["pairs_matched"] == pairs else f"{ours['pairs_matched']:,} of"
+
+    def eer(x):
+        return "–" if x["eer"] is None else _pct(x["eer"])
+
     return (f"| recognition, SHREC'07 watertight, {c['shapes']} shapes of {len(c['classes'])} classes: "
-            f"nearest neighbour; first tier; time on 2 cores | {_pct(ours['nn'])}; {_pct(ours['ft'])}; "
-            f"{_minutes(ours['seconds'])} (`{name[len('gromov '):]}`: {ours['pairs_matched']:,} of {c['shapes'] * (c['shapes'] - 1) // 2:,} pairs) | "
-            f"{_pct(dna['nn'])}; {_pct(dna['ft'])}; {_minutes(dna['seconds'])} (Shape-DNA); {_pct(hks['nn'])}; "
-            f"{_pct(hks['ft'])}; {_minutes(hks['seconds'])} (pooled HKS) |")
+            f"nearest neighbour; first tier; EER; time on 2 cores | {_pct(ours['nn'])}; {_pct(ours['ft'])}; "
+            f"{eer(ours)}; {_minutes(ours['seconds'])} (`{name[len('gromov '):]}`: {which} {pairs:,} pairs) | "
+            f"{_pct(dna['nn'])}; {_pct(dna['ft'])}; {eer(dna)}; {_minutes(dna['seconds'])} (Shape-DNA); "
+            f"{_pct(hks['nn'])}; {_pct(hks['ft'])}; {eer(hks)}; {_minutes(hks['seconds'])} (pooled HKS) |")
 
 
 def _minutes(s: float) -> str:
@@ -454,6 +460,34 @@ def point_clouds_table(r: dict) -> str:
     return "\n".join(rows)
 
 
+def recognition_table(w: dict, t: dict) -> str:
+    """bench_recognition.py with every pair matched, on the watertight collection (``w``) and on
+    TOSCA (``t``): each method's retrieval scores and time."""
+    rw, rt = w["collections"]["watertight"]["rows"], t["collections"]["tosca"]["rows"]
+    names = {"shapedna": "Shape-DNA (input mesh, 50 eigenvalues)", "hks": "pooled heat kernel signature (input mesh)"}
+    ours = next(k for k in rw if k.startswith("gromov --units area"))
+    names[ours] = f"gromov `{ours[len('gromov '):]}`, every pair"
+    out = ["| method (whole collection) | watertight NN | FT | ST | EER | time, 2 cores | TOSCA NN | FT | EER | time |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for key, name in names.items():
+        a, b = rw[key], rt[key]
+        out.append(f"| {name} | {_pct(a['nn'])} | {_pct(a['ft'])} | {_pct(a['st'])} | {_pct(a['eer'])} | "
+                   f"{_minutes(a['seconds'])} | {_pct(b['nn'])} | {_pct(b['ft'])} | {_pct(b['eer'])} | "
+                   f"{_minutes(b['seconds'])} |")
+    return "\n".join(out)
+
+
+def two_stage_table(r: dict) -> str:
+    """benchmarks/studies/recognition_two_stage.py: the two-stage search read off the complete
+    matrix, for each number of candidates."""
+    out = ["| C | pairs matched | queries whose 10 nearest are brute force's | NN | estimated time |",
+           "|---:|---:|---:|---:|---:|"]
+    for x in r["two_stage"]:
+        out.append(f"| {x['candidates']} | {x['pairs']:,} | {_pct(x['top_equal_list'])} | {_pct(x['nn'])} | "
+                   f"{_minutes(x['estimated_seconds'])} |")
+    return "\n".join(out)
+
+
 def benchmark_tables() -> list[tuple[str, str]]:
     """Every benchmark table of docs/benchmarks.md, each with the results file it reads."""
     f, m = load("foundation.json"), load("match.json")
@@ -472,7 +506,11 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("collection.json", collection_runs(load("collection.json"))),
             ("collection_retrieval.json", retrieval_table(load("collection_retrieval.json"))),
             ("collection_resume.json", collection_runs(load("collection_resume.json"))),
-            ("collection_dask.json", dask_table(load("collection_dask.json")))]
+            ("collection_dask.json", dask_table(load("collection_dask.json"))),
+            ("recognition_watertight_full.json, recognition_tosca_full.json",
+             recognition_table(load("recognition_watertight_full.json"), load("recognition_tosca_full.json"))),
+            ("recognition_two_stage.json", two_stage_table(
+                json.loads((HERE.parent / "studies" / "recognition_two_stage.json").read_text())))]
 
 
 def main(argv=None) -> None:

@@ -264,11 +264,11 @@ def test_benchmark_page_tables_are_the_results_files():
     rt = _module("readme_tables")
     page = BENCHMARKS_PAGE.read_text()
     tables = rt.benchmark_tables()
-    assert len(tables) == 16
+    assert len(tables) == 18
     for name, tab in tables:
         assert tab in page, f"docs/benchmarks.md's table from {name} is not what the file gives"
     (foundation, steps, match_acc, match_speed, _, _, _, _, _, sampling, clouds, speed, collection, retrieval,
-     resume, dask) = (t for _, t in tables)
+     resume, dask, recognition, two_stage) = (t for _, t in tables)
     g = _json("foundation.json")["geodesic_all_pairs"]["gromov fmm refine=2"]
     assert f"| {g['seconds']:.1f} s | {g['ratio_to_ours']:.2f}× | {100 * g['mean_rel_err']:.2f}% |" in foundation
     d = _json("foundation.json")["diffusion"]
@@ -303,6 +303,13 @@ def test_benchmark_page_tables_are_the_results_files():
     da = _json("collection_dask.json")["dask"]
     median = float(np.median([x["throughput_ratio_match"] for x in da["rounds"]]))
     assert f"| median | | | {median:.2f}× |" in dask and len(da["rounds"]) >= 3
+    wt = _json("recognition_watertight_full.json")["collections"]["watertight"]
+    ours = next(v for k, v in wt["rows"].items() if k.startswith("gromov --units area"))
+    assert ours["pairs_matched"] == 200 * 199 // 2 and wt["shapes"] == 200
+    assert f"| {100 * ours['nn']:.1f}% | {100 * ours['ft']:.1f}% | {100 * ours['st']:.1f}% | {100 * ours['eer']:.1f}% |" in recognition
+    study = _json("../studies/recognition_two_stage.json")
+    c40 = next(x for x in study["two_stage"] if x["candidates"] == 40)
+    assert f"| 40 | {c40['pairs']:,} | {100 * c40['top_equal_list']:.1f}% |" in two_stage
 
 
 def test_cloud_sampling_benchmark_compares_like_with_like():
@@ -412,3 +419,24 @@ def test_the_paths_the_docs_name_under_benchmarks_exist():
     for name in listed:
         assert (STUDIES / name).is_file(), name
         assert f"benchmarks/studies/{name}" in notes, f"no design note gives the path of {name}"
+
+
+def test_two_stage_read_off_the_complete_matrix():
+    """With every other shape a candidate the two-stage search is brute force; with fewer, a
+    query whose true neighbours lie beyond its candidates differs, and unmatched pairs rank last."""
+    st = _module("recognition_two_stage")
+    rng = np.random.default_rng(0)
+    n = 12
+    labels = np.repeat(np.arange(3), 4)
+    D = rng.random((n, n))
+    D = D + D.T
+    np.fill_diagonal(D, 0.0)
+    S = D[::-1, ::-1].copy()   # a first stage that disagrees with D
+    full = st.two_stage(D, S, n - 1, 3, labels)
+    assert full["pairs"] == n * (n - 1) // 2 and full["top_equal_list"] == 1.0
+    few = st.two_stage(D, S, 2, 3, labels)
+    assert few["pairs"] < full["pairs"] and few["top_equal_list"] < 1.0
+    matched = np.eye(n, dtype=bool)
+    matched[0, 1] = matched[1, 0] = True
+    R = st.ranked_after(D, S, matched)
+    assert R[0, 1] == D[0, 1] and (R[0, 2:] > D[matched].max()).all()
