@@ -1,7 +1,7 @@
 """Partial shapes: a part of a TOSCA shape (a plane cut, large holes) matched to another pose, gromov beside pyFM.
 
 Run:  .venv/bin/python benchmarks/bench_partial.py [--data DIR] [--classes cat,dog,...] [--per-class N]
-                                                  [--kinds plane,holes] [--vertices N] [--radius F]
+                                                  [--kinds plane,holes] [--vertices N] [--radius F] [--keep LO,HI]
                                                   [--json OUT]
 
 The parts are those of SHREC'16 *Partial Matching of Deformable Shapes* (Cosmo et al., 3DOR
@@ -98,8 +98,9 @@ CUT_BINS = (0.0, 0.05, 0.1, 0.2, np.inf)
 QUICK = {"classes": ["wolf", "centaur"], "per_class": 1}
 
 
-def keeps(kind: str, per_class: int) -> list[float]:
-    lo, hi = KEEP[kind]
+def keeps(kind: str, per_class: int, span: tuple[float, float] | None = None) -> list[float]:
+    """The area fractions a class's parts keep, spread evenly over ``span`` (default ``KEEP[kind]``)."""
+    lo, hi = KEEP[kind] if span is None else span
     return [lo + (hi - lo) * (k + 0.5) / per_class for k in range(per_class)]
 
 
@@ -476,6 +477,9 @@ def main(argv=None):
     ap.add_argument("--radius", type=float, default=0.7,
                     help="ours_radius: radius = this x the part's diameter in the metric (0: not run)")
     ap.add_argument("--count", type=int, default=CUT_PATCHES, help="holes: disks per part")
+    ap.add_argument("--keep", default=None, metavar="LO,HI",
+                    help="the area fractions the parts keep, for every kind (default: plane 0.4,0.8, "
+                         "holes 0.6,0.8)")
     ap.add_argument("--methods", default="ours,ours_partial,pyfm",
                     help=f"comma-separated, of {','.join(METHODS)} (ours_radius: with --radius; default "
                          "ours,ours_partial,pyfm)")
@@ -498,6 +502,14 @@ def main(argv=None):
                + sorted(set(methods) - set(METHODS)))
     if unknown:
         ap.error(f"unknown classes, kinds or methods {unknown}")
+    span = None
+    if args.keep is not None:
+        try:
+            span = tuple(float(x) for x in args.keep.split(","))
+        except ValueError:
+            span = ()
+        if len(span) != 2 or not 0.0 < span[0] <= span[1] < 1.0:
+            ap.error(f"--keep takes LO,HI with 0 < LO <= HI < 1, got {args.keep!r}")
     res = {"gromov": {"version": gromov.__version__,
                       "match": {"metric": "diffusion", "dense": "input", "n_samples": 100,
                                 "radius_fraction_of_part_diameter": args.radius or None},
@@ -506,7 +518,7 @@ def main(argv=None):
            "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS,
            "run": {"classes": classes, "per_class": per_class, "kinds": kinds, "methods": methods,
                    "vertices": args.vertices,
-                   "keep": {k: keeps(k, per_class) for k in kinds}, "holes_count": args.count,
+                   "keep": {k: keeps(k, per_class, span) for k in kinds}, "holes_count": args.count,
                    "command": "benchmarks/bench_partial.py " + " ".join(sys.argv[1:] if argv is None else argv)}}
     t0 = time.perf_counter()
     rows, uncut = [], []
@@ -516,7 +528,7 @@ def main(argv=None):
         print(f"{cls}: poses {poses.poses}, {poses.mesh(poses.poses[0]).n_vertices} vertices "
               f"({time.perf_counter() - t:.1f} s)", flush=True)
         for kind in kinds:
-            for k, keep in enumerate(keeps(kind, per_class)):
+            for k, keep in enumerate(keeps(kind, per_class, span)):
                 row = evaluate_pair(poses, kind, k, keep, args.radius, args.count, methods)
                 if row is not None:
                     rows.append(row)

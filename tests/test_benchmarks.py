@@ -440,3 +440,8 @@ def test_two_stage_read_off_the_complete_matrix():
     matched[0, 1] = matched[1, 0] = True
     R = st.ranked_after(D, S, matched)
     assert R[0, 1] == D[0, 1] and (R[0, 2:] > D[matched].max()).all()
+
+
+def test_partial_benchmark_keeps_a_given_span():
+    bp = _module("bench_partial")
+    assert bp.keeps("holes", 3, (0.25, 0.4)) == pytest.approx([0.275, 0.325, 0.375])
