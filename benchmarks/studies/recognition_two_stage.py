@@ -38,8 +38,10 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks" / "studies"))
 
 from bench_recognition import collection, euclidean, retrieval_scores, scores  # noqa: E402
+from recognition_defaults import objective, top_sets  # noqa: E402
 
 from gromov.experiments.pairwise import _candidate_pairs  # noqa: E402
 
@@ -52,16 +54,6 @@ def ranked_after(D: np.ndarray, S: np.ndarray, matched: np.ndarray) -> np.ndarra
     return out
 
 
-def top_lists(D: np.ndarray, top: int) -> list[np.ndarray]:
-    """Each query's ``top`` nearest others in order (ties by index)."""
-    n = len(D)
-    out = []
-    for i in range(n):
-        others = np.r_[0:i, i + 1:n]
-        out.append(others[np.argsort(D[i, others], kind="stable")[:top]])
-    return out
-
-
 def two_stage(D: np.ndarray, S: np.ndarray, c: int, top: int, labels) -> dict:
     """The two-stage search with ``c`` candidates, read off the complete matrix ``D``."""
     n = len(D)
@@ -71,7 +63,7 @@ def two_stage(D: np.ndarray, S: np.ndarray, c: int, top: int, labels) -> dict:
         matched[i, j] = matched[j, i] = True
     np.fill_diagonal(matched, True)
     R = ranked_after(D, S, matched)
-    brute, ours = top_lists(D, top), top_lists(R, top)
+    brute, ours = top_sets(D, top), top_sets(R, top)
     same_list = np.array([np.array_equal(a, b) for a, b in zip(brute, ours)])
     same_set = np.array([set(a.tolist()) == set(b.tolist()) for a, b in zip(brute, ours)])
     overlap = np.array([len(set(a.tolist()) & set(b.tolist())) / top for a, b in zip(brute, ours)])
@@ -114,7 +106,7 @@ def adaptive(D: np.ndarray, S: np.ndarray, G: np.ndarray, w: float, top: int, fi
             matched[i, j] = matched[j, i] = True
     np.fill_diagonal(matched, True)
     R = ranked_after(D, S, matched)
-    brute, ours = top_lists(D, top), top_lists(R, top)
+    brute, ours = top_sets(D, top), top_sets(R, top)
     same = np.array([np.array_equal(a, b) for a, b in zip(brute, ours)])
     r = retrieval_scores(R, labels)
     return {"first": first, "quantile": q, "floor": g, "pairs": int(matched[iu].sum()),
@@ -149,11 +141,6 @@ def load(cache: Path, data: str, name: str) -> tuple[dict, np.ndarray]:
 SIGNATURES = ("spectral", "dna_input", "hks_input")
 STATISTICS = ("trimmed", "gh")
 WEIGHTS = (0.0, 0.15, 0.25, 0.35, 0.5, 0.65)
-
-
-def objective(s: dict) -> float:
-    """J = mean(1 - NN, 1 - first tier, EER): the lower, the better (recognition_defaults.py's)."""
-    return float(np.mean([1.0 - s["nn"], 1.0 - s["ft"], s["eer"]]))
 
 
 def pair_local(mats: dict, labs: dict) -> list[dict]:
