@@ -54,24 +54,35 @@ def ranked_after(D: np.ndarray, S: np.ndarray, matched: np.ndarray) -> np.ndarra
     return out
 
 
-def two_stage(D: np.ndarray, S: np.ndarray, c: int, top: int, labels) -> dict:
-    """The two-stage search with ``c`` candidates, read off the complete matrix ``D``."""
-    n = len(D)
-    matched = np.zeros((n, n), dtype=bool)
-    pairs = _candidate_pairs(S, c)
-    for i, j in pairs:
+def matched_by_candidates(S: np.ndarray, c: int) -> np.ndarray:
+    """``(n, n)`` bool: the pairs ``gh_matrix(candidates=c)`` matches (and the diagonal)."""
+    matched = np.eye(len(S), dtype=bool)
+    for i, j in _candidate_pairs(S, c):
         matched[i, j] = matched[j, i] = True
-    np.fill_diagonal(matched, True)
+    return matched
+
+
+def against_brute_force(D: np.ndarray, S: np.ndarray, matched: np.ndarray, top: int, labels) -> dict:
+    """The search that matched ``matched`` (the diagonal included) against brute force's ``D``:
+    the pairs matched, the queries whose ``top`` nearest are brute force's (in order; as sets; the
+    mean overlap), and its nearest neighbour and first tier."""
+    n = len(D)
     R = ranked_after(D, S, matched)
     brute, ours = top_sets(D, top), top_sets(R, top)
     same_list = np.array([np.array_equal(a, b) for a, b in zip(brute, ours)])
     same_set = np.array([set(a.tolist()) == set(b.tolist()) for a, b in zip(brute, ours)])
     overlap = np.array([len(set(a.tolist()) & set(b.tolist())) / top for a, b in zip(brute, ours)])
     r = retrieval_scores(R, labels)
-    return {"candidates": c, "pairs": len(pairs), "fraction_of_pairs": len(pairs) / (n * (n - 1) // 2),
+    pairs = int(matched[np.triu_indices(n, 1)].sum())
+    return {"pairs": pairs, "fraction_of_pairs": pairs / (n * (n - 1) // 2),
             "top_equal_list": float(same_list.mean()), "top_equal_set": float(same_set.mean()),
             "top_overlap": float(overlap.mean()), "queries_differing": int((~same_set).sum()),
             "nn": float(np.mean(r["nn"])), "ft": float(np.nanmean(r["ft"]))}
+
+
+def two_stage(D: np.ndarray, S: np.ndarray, c: int, top: int, labels) -> dict:
+    """The two-stage search with ``c`` candidates, read off the complete matrix ``D``."""
+    return {"candidates": c, **against_brute_force(D, S, matched_by_candidates(S, c), top, labels)}
 
 
 def eer_local(D: np.ndarray, labels) -> float:
@@ -89,9 +100,7 @@ def adaptive(D: np.ndarray, S: np.ndarray, G: np.ndarray, w: float, top: int, fi
     ``top``-th value found, g the ``q``-quantile of G over the pairs of the first round (a lower
     estimate of G: the rule is exact where no unmatched pair has G below g)."""
     n = len(D)
-    matched = np.zeros((n, n), dtype=bool)
-    for i, j in _candidate_pairs(S, first):
-        matched[i, j] = matched[j, i] = True
+    matched = matched_by_candidates(S, first)
     iu = np.triu_indices(n, 1)
     g = float(np.quantile(G[iu][matched[iu]], q))
     order = [np.r_[0:i, i + 1:n][np.argsort(S[i, np.r_[0:i, i + 1:n]], kind="stable")] for i in range(n)]
@@ -104,14 +113,7 @@ def adaptive(D: np.ndarray, S: np.ndarray, G: np.ndarray, w: float, top: int, fi
             if S[i, j] ** w * g ** (1.0 - w) >= tth:
                 break
             matched[i, j] = matched[j, i] = True
-    np.fill_diagonal(matched, True)
-    R = ranked_after(D, S, matched)
-    brute, ours = top_sets(D, top), top_sets(R, top)
-    same = np.array([np.array_equal(a, b) for a, b in zip(brute, ours)])
-    r = retrieval_scores(R, labels)
-    return {"first": first, "quantile": q, "floor": g, "pairs": int(matched[iu].sum()),
-            "top_equal_list": float(same.mean()), "queries_differing": int((~same).sum()),
-            "nn": float(np.mean(r["nn"]))}
+    return {"first": first, "quantile": q, "floor": g, **against_brute_force(D, S, matched, top, labels)}
 
 
 def per_class_nn(D: np.ndarray, labels) -> dict:
