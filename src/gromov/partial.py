@@ -27,6 +27,11 @@ part, the second the whole, and
    :math:`b_i` its distance to the part's boundary along the surface and :math:`\beta` =
    ``boundary`` x the whole's :math:`\sqrt{\text{area}}`. The initial search
    (:mod:`gromov.search`, one direction) places the interior samples first.
+4. **curvature beside the distortion.** A one-sided map may shrink or stretch to fit, and the
+   poses of a class are seldom isometric, so a wrong region of the whole can fit the part with
+   less distortion than the right one. The search and the choice among its results also weigh
+   how well each sample's image keeps its smoothed mean curvature (:func:`curvature_costs`,
+   weight :data:`PARTIAL_CURVATURE`); the distance reported is the distortion alone.
 
 The region of the whole the part covers is read off the placed dense map: the whole's vertices
 within one edge length (along the whole's surface) of the image of a part vertex. Its share of
@@ -93,6 +98,13 @@ DIRECT_MARGIN, TURN_TOL, TURN_MARGIN = 0.15, 0.1, 0.1
 #: The dense map places each vertex by its distances to this many nearest samples
 #: (:func:`local_anchored_map`).
 N_LOCAL = 16
+#: The weight of the curvature term beside the distortion (:func:`curvature_costs`): a sample
+#: whose smoothed mean curvature differs from its image's by 1 costs as much as distances off by
+#: ``PARTIAL_CURVATURE`` x sqrt(area of the whole). The one-sided distortion alone prefers a wrong
+#: region of a whole whose poses are not isometric (a cat's front half on its back half); the
+#: truth keeps the curvature far better (docs/design/partial.md, "Curvature beside the
+#: distortion").
+PARTIAL_CURVATURE = 0.01
 #: The covered region: the whole's vertices within ``COVER_RADIUS`` of its mean edge lengths of
 #: the image of a part vertex, after a closing of ``COVER_CLOSE`` edge lengths
 #: (:func:`covered_region`).
@@ -280,7 +292,8 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
                   resolution: int | None = DEFAULT_RESOLUTION, metric_options: dict | None = None,
                   search: SearchOptions | None = None, dense: bool | str = False,
                   boundary: float = BOUNDARY_WIDTH, same_time: bool = True,
-                  n_refine: int = N_REFINE, interior_only: bool = True, n_local: int = N_LOCAL) -> MatchResult:
+                  n_refine: int = N_REFINE, interior_only: bool = True, n_local: int = N_LOCAL,
+                  curvature: float = PARTIAL_CURVATURE) -> MatchResult:
     r"""A part ``X`` matched into a whole shape ``Y``: :func:`gromov.match` with ``partial=True``.
 
     Parameters
@@ -306,6 +319,12 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     n_local : int, default N_LOCAL
         The dense map places each vertex by its distances to this many nearest samples (0: to
         all of them, :func:`gromov.dense.anchored_map`).
+    curvature : float, default PARTIAL_CURVATURE
+        Weight :math:`\lambda` of the curvature term: the search and the choice among the GMDS
+        results minimise the weighted stress plus
+        :math:`\sum_i (\sum_j w_i w_j) \, \lambda^2 \, \text{area}(Y) \, (H_X(p_i) - H_Y(q_i))^2`
+        over the smoothed mean curvatures (:func:`curvature_costs`); 0: the distortion alone.
+        The distance reported is the distortion alone either way.
 
     Returns
     -------
@@ -319,6 +338,8 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     search = SearchOptions() if search is None else search
     if n_samples < 3:
         raise ValueError(f"n_samples must be at least 3, got {n_samples}")
+    if not (np.isfinite(curvature) and curvature >= 0):
+        raise ValueError(f"curvature must be a finite number >= 0, got {curvature!r}")
     if dense is not False and dense is not None and not any(dense is d or dense == d for d in PARTIAL_DENSE):
         raise ValueError(f"dense must be True, False, 'input' or 'placed' for a partial match (its dense map "
                          f"is refined on the input meshes), got {dense!r}")
@@ -354,7 +375,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     with one_blas_thread():
         n_interior = int(np.sum(wp >= 0.5)) if interior_only else len(P)
         img, n_iter, converged, history, orientation = _search_and_refine(sx, sy, P, dx_pp, W, search, n_refine,
-                                                                          n_interior)
+                                                                          n_interior, curvature=curvature)
     dy = sy.surface.between(img, np.zeros(0, dtype=np.int64))
     dy = 0.5 * (dy + dy.T)
     residual = dx_pp - dy
@@ -600,23 +621,39 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
                          time.perf_counter() - t0)
 
 
+def curvature_costs(sx: ShapeMetric, sy: ShapeMetric, P: np.ndarray, weight: float) -> np.ndarray:
+    r"""``(len(P), n_Y)``: :math:`\lambda^2 \, \text{area}(Y) \, (H_X(p_i) - H_Y(v))^2`, the cost of
+    placing the part's sample ``P[i]`` at the whole's working vertex ``v`` for the mismatch of
+    their smoothed, scale-free mean curvatures (:func:`part_curvature`, ``sy.curvature``), in
+    squared distance units; ``weight`` :math:`\lambda`."""
+    hx, hy = part_curvature(sx, sy)[np.asarray(P, dtype=np.int64)], sy.curvature
+    return (float(weight) ** 2 * sy.mesh.area) * (hx[:, None] - hy[None, :]) ** 2
+
+
 def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int, n_interior: int,
-                       turn: bool = True, more_starts: bool = True):
+                       turn: bool = True, more_starts: bool = True, curvature: float = 0.0):
     """The initial search in one direction, then one-sided GMDS from its ``n_refine`` best
-    starts: the lowest final distortion. When that map is mirrored (orientation agreement at
+    starts: the lowest final objective (the weighted stress plus, with ``curvature`` > 0, each
+    sample's curvature cost (:func:`curvature_costs`) times its total weight; the coarse
+    stages take the same costs as their signatures). When that map is mirrored (orientation agreement at
     most 1/2), GMDS also from the best orientation-preserving starts and from the mirrored map
     composed with Y's reflection (:meth:`ShapeMetric.symmetry`), and a direct map within
     ``ORIENTATION_TOL`` (``FLIP_TOL`` for the composition) of its distortion replaces it.
     Returns ``(images, n_iter, converged, history, orientation agreement)``."""
     from .orientation import orientation_agreements
 
-    fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior)
+    unary = curvature_costs(sx, sy, P, curvature) if curvature > 0 else None
+    fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior, unary)
     DY = sy.distances
     oriented = bool(sx.normals[1] and sy.normals[1])
     (nx, _), (ny, _) = sx.normals, sy.normals
+    row_w, rows = W.sum(axis=1), np.arange(len(P))
+
+    def bent(img):   # the curvature term of a map given by its vertex images
+        return 0.0 if unary is None else float(np.sum(row_w * unary[rows, img]))
 
     def score(img):
-        return float(np.sum(W * (dx_pp - DY[np.ix_(img, img)]) ** 2))
+        return float(np.sum(W * (dx_pp - DY[np.ix_(img, img)]) ** 2)) + bent(img)
 
     def refine(starts):
         fits = []
@@ -628,7 +665,7 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
                 pos = img.positions(sy.mesh.vertices, sy.mesh.faces)
                 nrm = np.einsum("kc,kcd->kd", img.bary, ny[sy.mesh.faces[img.face]])
                 o = float(orientation_agreements(sx.mesh.vertices[P], nx[P], dx_pp, pos[None], nrm[None])[0])
-            fits.append((history[-1], img, n_iter, converged, history, o))
+            fits.append((history[-1] + bent(img.vertex(sy.mesh.faces)), img, n_iter, converged, history, o))
         return fits
 
     starts_all = [complete(img) for img, _ in fwd.extend_plain(polish_all=True)[0]]
@@ -701,11 +738,13 @@ def _prefer_curvature(sx, sy, P, starts, score, refine, best):
     return best
 
 
-def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int):
+def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int, unary=None):
     """The initial search of :func:`gromov.match` in one direction (X's samples into Y) on the
     interior samples (weight at least 1/2; P lists them first): ``(search, their number, a
     function completing a start)`` -- the other samples placed where their distances to those
-    fit best (:func:`gromov.search.anchored_images`)."""
+    fit best (:func:`gromov.search.anchored_images`). ``unary`` (samples x Y's vertices, the
+    curvature costs) replaces the distance signatures of the signature-guided stages: a part
+    does not share the whole's distance distributions."""
     n_in = max(int(n_interior), min(len(P), max(c for c, _ in search.coarse_stages)))
     head = np.ascontiguousarray(dx_pp[:n_in, :n_in])
     cand = _candidates(sx.descriptors[P[0]], sy, search.n_starts)
@@ -715,7 +754,9 @@ def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int):
     else:
         st, dom = [(c, None if k is None else sy.subset(k)) for c, k in stages], None
     sig = None
-    if search.signature_weight > 0:
+    if unary is not None:
+        sig = unary[:max(c for c, _ in stages)]
+    elif search.signature_weight > 0:
         c = max(c for c, _ in stages)
         sig = search.signature_weight * signature_mismatch(sx, sy, P[:c])
     fwd = _Search(head, sy.distances, cand, st, search.n_extend, dom, search.extend_keep, sig)
