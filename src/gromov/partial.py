@@ -389,11 +389,6 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     h = sy.mesh.mean_edge_length
     covered_w = covered_region(sy.mesh, T, COVER_RADIUS * h, COVER_CLOSE * h)
     covered = covered_w[sy.working.source_nearest]   # each input vertex as its nearest working vertex
-    areas = sy.input.vertex_areas
-    fraction = float(areas[covered].sum() / areas.sum())
-    y_covered = sy.input.per_file_vertex(covered, fill=False)
-    # Y's samples inside the region: the part's vertex whose image is nearest
-    yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w)
     extra = {}
     if dense:
         face, bary, vertex = _input_images(sx, sy, T)
@@ -402,11 +397,20 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
             kept = sx.working.source_kept
             face, bary = face.copy(), bary.copy()
             face[kept], bary[kept] = _at_vertices(sy.input, vertex[kept])
+            # the covered region read off the refined images, on the whole's input mesh
+            hi = sy.input.mean_edge_length
+            covered = covered_region(sy.input, vertex, COVER_RADIUS * hi, COVER_CLOSE * hi)
+            covered_w = covered[sy.working.to_source(np.arange(sy.mesh.n_vertices))]
         m = _by_file_id(sx, face, bary, sy.input.input_ids[vertex])
         back = _covered_back(sx, sy, T, covered_w, covered)
         extra = {"x_to_y_dense_face": m.face, "x_to_y_dense_bary": m.bary, "x_to_y_dense_vertex": m.vertex,
                  "y_to_x_dense_face": back.face, "y_to_x_dense_bary": back.bary, "y_to_x_dense_vertex": back.vertex,
                  "input_faces": (sx.input.input_ids[sx.input.faces], sy.input.input_ids[sy.input.faces])}
+    areas = sy.input.vertex_areas
+    fraction = float(areas[covered].sum() / areas.sum())
+    y_covered = sy.input.per_file_vertex(covered, fill=False)
+    # Y's samples inside the region: the part's vertex whose image is nearest
+    yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w)
     diam = sy.diameter
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
@@ -804,11 +808,14 @@ def _covered_back(sx, sy, T, covered_w, covered):
     from .dense import DenseMap
     from .dense import _at_vertices as faces_at
 
-    cov = np.flatnonzero(covered_w)
+    near = sy.working.source_nearest   # each input vertex's nearest working vertex
+    want = covered_w.copy()
+    want[near[covered]] = True
+    cov = np.flatnonzero(want)
     u = np.full(sy.mesh.n_vertices, -1, dtype=np.int64)
     if len(cov):
         u[cov] = np.argmin(sy.distances[np.ix_(cov, T)], axis=1)
-    uu = u[sy.working.source_nearest]   # each input vertex as its nearest working vertex
+    uu = u[near]
     ok = covered & (uu >= 0)
     n = sy.input.n_vertices
     face, bary, vertex = np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), np.full(n, -1, dtype=np.int64)
