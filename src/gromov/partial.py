@@ -33,8 +33,10 @@ part, the second the whole, and
    how well each sample's image keeps its smoothed mean curvature (:func:`curvature_costs`,
    weight :data:`PARTIAL_CURVATURE`); the distance reported is the distortion alone.
 
-The region of the whole the part covers is read off the placed dense map: the whole's vertices
-within one edge length (along the whole's surface) of the image of a part vertex. Its share of
+The region of the whole the part covers is read off the dense map: the whole's vertices within
+one edge length (along the whole's surface) of the image of a part vertex, gaps between images
+closed (the placed map on the working mesh; with ``dense=True``, the refined images on the
+input mesh). Its share of
 the whole's area is reported with the distance. With ``dense=True`` the part's map is then
 refined on the input meshes by ZoomOut with a rectangular functional map
 (:func:`partial_zoomout`; Rodolà, Cosmo, Bronstein, Torsello & Cremers, CGF 2017). A part below :data:`SMALL_PART` of the whole's
