@@ -66,7 +66,7 @@ from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
 from .mesh import Mesh, as_shape
 from .metrics.diffusion import correspondence_options
-from .search import SearchOptions, _candidates, _orient, _Search, anchored_images, signature_mismatch
+from .search import SIGNATURE_STARTS, SearchOptions, _candidates, _orient, _Search, anchored_images, signature_mismatch
 from .shape_metric import ShapeMetric
 
 __all__ = ["BOUNDARY_WIDTH", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START", "PARTIAL_K_STEP",
@@ -749,8 +749,9 @@ def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int, unary=None
     interior samples (weight at least 1/2; P lists them first): ``(search, their number, a
     function completing a start)`` -- the other samples placed where their distances to those
     fit best (:func:`gromov.search.anchored_images`). ``unary`` (samples x Y's vertices, the
-    curvature costs) replaces the distance signatures of the signature-guided stages: a part
-    does not share the whole's distance distributions."""
+    curvature costs) replaces the distance signatures of the signature-guided stages (a part
+    does not share the whole's distance distributions), from every candidate rather than the
+    ``SIGNATURE_STARTS`` whose distance signatures match best."""
     n_in = max(int(n_interior), min(len(P), max(c for c, _ in search.coarse_stages)))
     head = np.ascontiguousarray(dx_pp[:n_in, :n_in])
     cand = _candidates(sx.descriptors[P[0]], sy, search.n_starts)
@@ -765,7 +766,10 @@ def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int, unary=None
     elif search.signature_weight > 0:
         c = max(c for c, _ in stages)
         sig = search.signature_weight * signature_mismatch(sx, sy, P[:c])
-    fwd = _Search(head, sy.distances, cand, st, search.n_extend, dom, search.extend_keep, sig)
+    # with the curvature costs every candidate gets the signed run: the candidates are ordered by
+    # the distance signatures, which say little of where a part's first sample lies
+    fwd = _Search(head, sy.distances, cand, st, search.n_extend, dom, search.extend_keep, sig,
+                  len(cand) if unary is not None else SIGNATURE_STARTS)
     DY = sy.distances
 
     def complete(img):

@@ -219,7 +219,7 @@ class _Search:
     can be extended later (:meth:`extend_preserving`)."""
 
     def __init__(self, dx_pp, DY, candidates, stages, n_extend, domain, extend_keep=EXTEND_KEEP,
-                 signature_costs=None):
+                 signature_costs=None, signature_starts=SIGNATURE_STARTS):
         self.extend_keep = float(extend_keep)
         self.dx_pp = np.ascontiguousarray(dx_pp, dtype=np.float64)
         candidates = np.asarray(candidates, dtype=np.int64)
@@ -247,7 +247,7 @@ class _Search:
             sub = subsets[stage]
             U, k = None, len(candidates)
             if signed:  # as if each of a sample's c - 1 distances were off by its mismatch
-                U, k = (c - 1) * signature_costs[:c], min(k, SIGNATURE_STARTS)
+                U, k = (c - 1) * signature_costs[:c], min(k, int(signature_starts))
             if sub is not None:
                 dom, part, cand = sub
                 imgs, costs = _kernel.coarse_starts(head, part, cand[:k], 20, None if U is None else U[:, dom])
