@@ -66,13 +66,14 @@ from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
 from .mesh import Mesh, as_shape
 from .metrics.diffusion import correspondence_options
-from .search import SIGNATURE_STARTS, SearchOptions, _candidates, _orient, _Search, anchored_images, signature_mismatch
+from .search import (SIGNATURE_STARTS, SearchOptions, _candidates, _orient, _Search, anchored_images,
+                     signature_mismatch)
 from .shape_metric import ShapeMetric
 
-__all__ = ["BOUNDARY_WIDTH", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START", "PARTIAL_K_STEP",
-           "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix", "boundary_distance",
-           "covered_region", "in_whole_metric", "local_anchored_map", "match_partial", "partial_matrix",
-           "partial_zoomout", "sample_weights"]
+__all__ = ["BOUNDARY_WIDTH", "PARTIAL_CURVATURE", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START",
+           "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix",
+           "boundary_distance", "covered_region", "curvature_costs", "in_whole_metric", "local_anchored_map",
+           "match_partial", "part_curvature", "partial_matrix", "partial_zoomout", "sample_weights"]
 
 logger = logging.getLogger(__name__)
 
