@@ -628,12 +628,15 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
                          time.perf_counter() - t0)
 
 
-def curvature_costs(sx: ShapeMetric, sy: ShapeMetric, P: np.ndarray, weight: float) -> np.ndarray:
+def curvature_costs(sx: ShapeMetric, sy: ShapeMetric, P: np.ndarray, weight: float,
+                    hx: np.ndarray | None = None) -> np.ndarray:
     r"""``(len(P), n_Y)``: :math:`\lambda^2 \, \text{area}(Y) \, (H_X(p_i) - H_Y(v))^2`, the cost of
     placing the part's sample ``P[i]`` at the whole's working vertex ``v`` for the mismatch of
     their smoothed, scale-free mean curvatures (:func:`part_curvature`, ``sy.curvature``), in
-    squared distance units; ``weight`` :math:`\lambda`."""
-    hx, hy = part_curvature(sx, sy)[np.asarray(P, dtype=np.int64)], sy.curvature
+    squared distance units; ``weight`` :math:`\lambda`; ``hx`` the part's at ``P``, if computed."""
+    if hx is None:
+        hx = part_curvature(sx, sy)[np.asarray(P, dtype=np.int64)]
+    hy = sy.curvature
     return (float(weight) ** 2 * sy.mesh.area) * (hx[:, None] - hy[None, :]) ** 2
 
 
@@ -649,7 +652,8 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
     Returns ``(images, n_iter, converged, history, orientation agreement)``."""
     from .orientation import orientation_agreements
 
-    unary = curvature_costs(sx, sy, P, curvature) if curvature > 0 else None
+    hx = part_curvature(sx, sy)[P] if curvature > 0 else None   # once: the half-turn rule reads it too
+    unary = curvature_costs(sx, sy, P, curvature, hx) if curvature > 0 else None
     fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior, unary)
     DY = sy.distances
     oriented = bool(sx.normals[1] and sy.normals[1])
@@ -697,7 +701,7 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
         if direct:
             best = min(direct, key=lambda f: f[0])
     if oriented and best[5] > 0.5 and turn:
-        best = _prefer_curvature(sx, sy, P, starts_all, score, refine, best)
+        best = _prefer_curvature(sx, sy, P, starts_all, score, refine, best, hx)
     logger.debug("partial fits: %s", [(f[0], f[5]) for f in fits])
     return best[1], best[2], best[3], best[4], best[5]
 
@@ -712,14 +716,14 @@ def part_curvature(sx: ShapeMetric, sy: ShapeMetric) -> np.ndarray:
     return mean_curvature(sx.mesh, sx.normals[0], scale=CURVATURE_SCALE * ratio) * np.sqrt(ratio)
 
 
-def _prefer_curvature(sx, sy, P, starts, score, refine, best):
+def _prefer_curvature(sx, sy, P, starts, score, refine, best, hx=None):
     """A direct map against its half turn (:func:`gromov.gh._prefer_curvature` for one side):
     among the clearly direct starts (agreement above 1/2 + ``DIRECT_MARGIN``) within
     ``TURN_TOL`` of the best start's distortion, the one whose images keep the curvature best;
     GMDS from it, kept when still clearly direct, within ``TURN_TOL`` of the map's distortion
     and better by ``TURN_MARGIN`` in curvature mismatch (the median over the part's samples)."""
-    hx, hy = part_curvature(sx, sy)[P], sy.curvature
-    faces = sy.mesh.faces
+    hx = part_curvature(sx, sy)[P] if hx is None else hx
+    hy, faces = sy.curvature, sy.mesh.faces
 
     def mismatch(images):
         return float(np.median(np.abs(hx - hy[images])))
