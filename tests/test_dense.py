@@ -175,6 +175,22 @@ def test_dense_errors_on_a_sphere_are_geodesic():
     np.testing.assert_allclose(e, ang, rtol=0.03, atol=1e-3)
 
 
+def test_an_image_on_another_piece_is_infinitely_far():
+    """Two separate spheres: an image on one, its truth on the other, is at infinite distance
+    (not NaN), whether the image is a vertex (two corners of weight 0) or inside a face."""
+    a = icosphere(2)
+    m = Mesh(np.vstack([a.vertices, a.vertices + [5.0, 0.0, 0.0]]),
+             np.vstack([a.faces, a.faces + a.n_vertices]))
+    indptr, fids = m.vertex_faces
+    f = fids[indptr[3]]
+    face = np.array([f, f, f])
+    bary = np.vstack([np.eye(3)[int(np.argmax(m.faces[f] == 3))], [1 / 3, 1 / 3, 1 / 3], np.eye(3)[0]])
+    truth = np.array([a.n_vertices + 3, a.n_vertices + 7, 3])   # two on the other sphere, one on this
+    e = dense_errors(face, bary, m, truth)
+    assert np.isinf(e[:2]).all() and np.isfinite(e[2])
+    assert np.isinf(dense_error(face[:1], bary[:1], m, truth[:1]).mean)
+
+
 def _random_images_on_a_sphere(seed: int, k: int = 400):
     """A sphere, its reference, and ``k`` random image points with random true vertices, and
     the full marches' distances from each true vertex to its image's corners."""

@@ -213,6 +213,31 @@ def test_reflection_map_of_a_symmetric_sheet():
     assert np.array_equal(reflection_map(sub)[100:], m + 100)
 
 
+def test_reflection_map_keeps_each_piece_on_one_piece():
+    """A nearly symmetric sheet and a small separate piece floating just where one sheet
+    vertex's reflection lands: the sheet still maps onto the sheet, the piece onto one piece."""
+    g = grid(9, 5)
+    v = g.vertices.copy()
+    y = v[:, 1] - v[:, 1].mean()
+    v[:, 2] = 0.5 * y**3 / np.abs(y).max() ** 2   # symmetric in x only
+    v[:, 0] += np.random.default_rng(0).uniform(-0.02, 0.02, len(v)) * (v[:, 0].max() - v[:, 0].min())
+    lo, hi = v[:, 0].min(), v[:, 0].max()
+    j = int(np.argmin(np.linalg.norm(v - [hi - 0.25 * (hi - lo), 0.5 * (v[:, 1].min() + v[:, 1].max()), 0], axis=1)))
+    spot = v[j].copy()
+    spot[0] = lo + hi - spot[0]   # where vertex j's reflection lands
+    piece = spot + np.array([[0.0, 0.0, 1e-4], [0.01, 0.0, 1e-4], [0.0, 0.01, 1e-4]])
+    m = Mesh(np.vstack([v, piece]), np.vstack([g.faces, [[0, 1, 2]] + np.int64(len(v))]))
+    mirror = reflection_map(m)
+    sheet = m.component_labels[:len(v)]
+    assert np.all(m.component_labels[mirror[: len(v)]] == sheet[0])
+    assert len(np.unique(m.component_labels[mirror[len(v):]])) == 1
+    # what a plain nearest-vertex reflection did: vertex j onto the piece
+    r = v.copy()
+    r[:, 0] = m.vertices[:, 0].min() + m.vertices[:, 0].max() - r[:, 0]
+    assert np.argmin(np.linalg.norm(m.vertices - r[j], axis=1)) >= len(v)
+    np.testing.assert_allclose(m.vertices[mirror[j], 1:], v[j, 1:], atol=0.3 * m.mean_edge_length)
+
+
 def test_settings_and_user_errors(tmp_path, capsys):
     with pytest.raises(ValueError, match="dataset must be"):
         settings_for("shrec")

@@ -205,7 +205,9 @@ def dense_errors(face, bary, target: Mesh, truth, *, fmm=None) -> np.ndarray:
             break
         d = ref.fmm.distances_to(src[todo], corners[todo], limit=limit * scale)
         done = np.isfinite(d).all(axis=1) | (limit == np.inf)
-        err[todo[done]] = np.sqrt((bary[todo[done]] * d[done] ** 2).sum(axis=1))
+        # a corner of weight 0 adds nothing, even unreached (0 x inf would be NaN)
+        b = bary[todo[done]]
+        err[todo[done]] = np.sqrt((b * np.where(b > 0, d[done], 0.0) ** 2).sum(axis=1))
         todo = todo[~done]
     return err
 

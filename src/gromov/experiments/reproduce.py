@@ -208,7 +208,10 @@ def reflection_map(mesh: Mesh) -> np.ndarray:
     TOSCA reference poses (and the synthetic ones) are left/right symmetric about a plane
     through the bounding box's centre, perpendicular to a coordinate axis: reflect the
     vertices through each of the three planes and keep the one whose reflection lands
-    closest to the surface (mean distance to the nearest vertex).
+    closest to the surface (mean distance to the nearest vertex). A mesh in several pieces
+    (a body with separate eyes or teeth) maps each piece onto one piece, the one most of its
+    reflected vertices land nearest (the body onto the body, a left eye onto the right eye):
+    a body vertex whose reflection passes near an eye is not sent onto the eye.
 
     Returns
     -------
@@ -227,8 +230,17 @@ def reflection_map(mesh: Mesh) -> np.ndarray:
         r[:, axis] = 2 * centre[axis] - r[:, axis]
         d, idx = tree.query(r)
         if best is None or d.mean() < best[0]:
-            best = (d.mean(), idx)
-    return mesh.per_file_vertex(mesh.input_ids[best[1]])
+            best = (d.mean(), idx, r)
+    idx, r = best[1].copy(), best[2]
+    labels = mesh.component_labels
+    if mesh.n_components > 1:
+        for c in np.unique(labels):
+            own = np.flatnonzero(labels == c)
+            onto = int(np.bincount(labels[idx[own]]).argmax())
+            if np.any(labels[idx[own]] != onto):
+                there = np.flatnonzero(labels == onto)
+                idx[own] = there[cKDTree(v[there]).query(r[own])[1]]
+    return mesh.per_file_vertex(mesh.input_ids[idx])
 
 
 def _weld(work: Mesh, count: int, seed: int, join: str = "pinch"):
