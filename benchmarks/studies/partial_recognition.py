@@ -10,7 +10,7 @@ is matched into every one of the 80 wholes except the pose it was cut from
 samples; every whole prepared once and shared with the ``--jobs`` forked workers). The wholes
 are ranked by the partial match's relative distance (half the weighted RMS of the one-sided
 residuals over the whole's diameter); the score is the fraction of parts whose nearest whole is
-of their class (the issue of partial shapes asks for at least 95%), with the rank of the nearest
+of their class (the aim: at least 95%), with the rank of the nearest
 whole of the right class and the covered fraction of the area, per part, in the JSON; and the
 same fraction ranked by the relative distance ÷ the covered fraction (``gromov pairwise
 --partial``'s score), ``nearest_of_own_class_by_score``. ``--rescore JSON`` adds that to a
