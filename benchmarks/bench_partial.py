@@ -52,8 +52,8 @@ vertices that are the truth of some part vertex, grown by one ring (the same con
 perfect map has IoU 1): intersection over union, per pair, averaged per kind, against the true
 region on the branch its errors are read on (the mirrored truth's region where the mirrored
 reading fits better: a mirror image covers the mirrored region), the direct true region's beside
-it (``iou_direct``); beside them the IoU of a map claiming every vertex of the whole (the true region's share of them), the score of
-knowing nothing (``--add-baseline`` adds it to a results file made without it).
+it (``iou_direct``); beside them the IoU of a map claiming every vertex of the whole (the true
+region's share of them), the score of knowing nothing (``--add-baseline`` adds it to a results file made without it).
 
 Diagnostics of ``ours`` (why a part fails), on the part's 100 samples in the match's own metric
 (normalised heat diffusion) ÷ the whole's diameter in it: the one-sided RMS distortion of the
@@ -319,13 +319,13 @@ def evaluate_pair(poses: ClassPoses, kind: str, k: int, keep: float, radius: flo
         # counted as the whole's diameter
         cap = e.diameter / np.sqrt(e.area)
         truth_region = true_mirrored if e.branch == "mirrored" else true_region
+        region = regions.get(method, grow(whole, vertex))
         errors, direct = (np.where(np.isfinite(x), x, cap) for x in (e.errors, e.direct))
         row[method] = {"mean": float(errors.mean()), "median": float(np.median(errors)),
                        "mean_direct": float(direct.mean()), "median_direct": float(np.median(direct)),
                        "per_diameter": float(errors.mean() / cap), "branch": e.branch,
                        "off_piece": float(np.mean(~np.isfinite(e.direct))), "seconds": seconds[method],
-                       "iou": iou(regions.get(method, grow(whole, vertex)), truth_region),
-                       "iou_direct": iou(regions.get(method, grow(whole, vertex)), true_region),
+                       "iou": iou(region, truth_region), "iou_direct": iou(region, true_region),
                        "iou_images": iou(grow(whole, vertex), truth_region), "errors": errors, "direct": direct}
         diameter = e.diameter
     row["evaluation_seconds"] = time.perf_counter() - t
@@ -449,24 +449,22 @@ def summarise(title: str, rows: list[dict]) -> dict:
     return out
 
 
-_COMPILED: list = []
-
-
-def full_vs_partial(poses: ClassPoses, repeat: int = 3) -> dict:
+def full_vs_partial(poses: ClassPoses, repeat: int = 3, compile_first: bool = False) -> dict:
     """The class's uncut pose matched to the next one, full and ``partial=True`` (geodesic): what
     partial matching reports for two whole shapes, and what it costs.
 
     Cost, two ways: *cold*, one call each from the meshes (each call makes its own metrics, as
     ``gromov match A B`` does); *warm*, on the two poses prepared once, every per-shape cache filled
     by a first call of each (distances, samples, curvature, the whole's intrinsic reflection), the
-    median of ``repeat`` calls, full and partial in turn (what a pair costs in a collection)."""
+    median of ``repeat`` calls, full and partial in turn (what a pair costs in a collection).
+    ``compile_first``: match copies of the two poses once before, uncounted (the process's first
+    calls compile the kernels, which is not a match's cost)."""
     a, b = poses.poses[0], poses.poses[1 % len(poses.poses)]
     ma, mb = poses.mesh(a), poses.mesh(b)
-    if not _COMPILED:   # the process's first calls compile the kernels: not a match's cost
+    if compile_first:
         fresh = [gromov.Mesh(m.vertices.copy(), m.faces.copy()) for m in (ma, mb)]
         gromov.match(*fresh, "geodesic")
         gromov.match(*fresh, "geodesic", partial=True)
-        _COMPILED.append(True)
     t = time.perf_counter()
     gromov.match(ma, mb, "geodesic")
     cold_full = time.perf_counter() - t
@@ -569,7 +567,7 @@ def main(argv=None):
                 if row is not None:
                     rows.append(row)
         if "ours_partial" in methods:
-            uncut.append(full_vs_partial(poses))
+            uncut.append(full_vs_partial(poses, compile_first=not uncut))
         # the pairs so far, in case the run is stopped (the summary comes at the end)
         write_results(args.json, {**res, "pairs": _rows_for_json(rows), "full_vs_partial": uncut, "complete": False,
                                   "total_seconds": time.perf_counter() - t0})
