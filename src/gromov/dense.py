@@ -44,13 +44,17 @@ from ._arrays import one_blas_thread, readonly
 from ._project import project_among
 from .resolution import gather
 
-__all__ = ["DenseMap", "dense_maps", "anchored_map", "landmark_distances", "zoomout", "input_zoomout",
+__all__ = ["DenseMap", "dense_maps", "anchored_map", "local_anchored_map", "landmark_distances", "zoomout", "input_zoomout",
            "laplace_beltrami_basis", "prolonged_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
-           "DENSE_REFINE", "DENSE_CANDIDATES", "REFINEMENTS", "place_small_pieces", "PIECE_PATCH"]
+           "DENSE_REFINE", "DENSE_CANDIDATES", "DENSE_LOCAL", "REFINEMENTS", "place_small_pieces", "PIECE_PATCH"]
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
-#: Fraction of the landmarks kept, and how many trimming rounds.
+#: Each vertex placed from this many of its nearest landmarks (:func:`local_anchored_map`); 0:
+#: from all of them, trimmed (:func:`anchored_map`). A weld moves the far landmarks' distances
+#: (docs/design/dense.md, "Placed from the nearest landmarks").
+DENSE_LOCAL = 16
+#: With ``local=0``: the fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
 #: Candidate images per vertex, re-ranked by their own trimmed residual (:func:`anchored_map`);
@@ -202,6 +206,41 @@ def _sum_of_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     cost *= -2.0
     cost += (b * b).sum(1)[None, :]
     return cost
+
+
+def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = DENSE_LOCAL) -> np.ndarray:
+    r"""Working vertex of Y for each working vertex of X from its ``k`` nearest landmarks:
+
+    .. math:: T(v) = \arg\min_w \sum_{l \in N_k(v)} (a^Y_{wl} - a^X_{vl})^2 ,
+
+    :math:`N_k(v)` the ``k`` landmarks nearest to ``v`` on X: a point is placed by the anchors
+    around it, as in the interpolation of a point from nearby anchors (Bronstein et al., IJCV
+    2010, §4). Over all landmarks (:func:`anchored_map`) the far ones pull every point, and their
+    distances are those a weld, a glued contact or a cut changes most.
+
+    Parameters
+    ----------
+    ax : ndarray (n_X, L)
+        Distances from X's working vertices to X's landmarks.
+    ay : ndarray (n_Y, L)
+        Distances from Y's working vertices to the paired landmarks on Y.
+    k : int, default DENSE_LOCAL
+        At least 3 and at most L are used.
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+    """
+    ax, ay = np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64)
+    if ax.ndim != 2 or ay.ndim != 2 or ax.shape[1] != ay.shape[1]:
+        raise ValueError(f"ax and ay must be (n_X, L) and (n_Y, L), got {ax.shape} and {ay.shape}")
+    k = int(min(max(k, 3), ax.shape[1]))
+    near = np.argpartition(ax, k - 1, axis=1)[:, :k]
+    m = np.zeros_like(ax)
+    np.put_along_axis(m, near, 1.0, axis=1)
+    cost = m @ (ay * ay).T
+    cost -= 2.0 * ((m * ax) @ ay.T)
+    return np.argmin(cost, axis=1).astype(np.int64)
 
 
 def _trimmed_per_pair(ax: np.ndarray, ay: np.ndarray, h: int, k: int, chunk: int = 256) -> np.ndarray:
@@ -719,7 +758,7 @@ def _by_file_id(s, face, bary, vertex) -> DenseMap:
 
 
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
-               keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
+               local: int = DENSE_LOCAL, keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
                refine: str | None = DENSE_REFINE) -> tuple[DenseMap, DenseMap]:
     """Dense maps X -> Y and Y -> X from paired landmarks.
 
@@ -730,8 +769,12 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         ids)``
         The two halves of the sample correspondence on each shape, in matching order: on X
         ``(P, images of Q)``, on Y ``(images of P, Q)``.
-    tau_scale, keep, rounds
-        :func:`landmark_distances`, :func:`anchored_map`.
+    tau_scale : float, default DENSE_TAU_SCALE
+        :func:`landmark_distances`.
+    local : int, default DENSE_LOCAL
+        Each working vertex placed from its ``local`` nearest landmarks
+        (:func:`local_anchored_map`); 0: from all of them, trimmed (:func:`anchored_map` with
+        ``keep`` and ``rounds``).
     refine : {"input", "zoomout", None}, default DENSE_REFINE
         Refine each placed map by :func:`input_zoomout` on the input meshes ("input"), or by
         :func:`zoomout` on the working meshes ("zoomout"); meshes only (a point cloud's map is
@@ -746,8 +789,13 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         raise ValueError(f"refine must be one of {REFINEMENTS}, got {refine!r}")
     ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
     ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
-    t_xy = anchored_map(ax, ay, keep=keep, rounds=rounds)
-    t_yx = anchored_map(ay, ax, keep=keep, rounds=rounds)
+    if int(local) < 0:
+        raise ValueError(f"local must be a non-negative number of landmarks, got {local!r}")
+    if local:
+        t_xy, t_yx = local_anchored_map(ax, ay, int(local)), local_anchored_map(ay, ax, int(local))
+    else:
+        t_xy = anchored_map(ax, ay, keep=keep, rounds=rounds)
+        t_yx = anchored_map(ay, ax, keep=keep, rounds=rounds)
     meshes = sx.has_faces and sy.has_faces
     if refine == "zoomout" and meshes:
         t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)

@@ -60,7 +60,8 @@ from scipy.sparse import csgraph
 from ._arrays import one_blas_thread
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
-from .dense import _at_vertices, _by_file_id, _input_basis, _input_images, _zoomout_steps
+from .dense import (DENSE_LOCAL, _at_vertices, _by_file_id, _input_basis, _input_images, _zoomout_steps,
+                    local_anchored_map)
 from .errors import GromovWarning, MetricError, SmallPartWarning
 from .gmds import SurfacePoints, norm_value
 from .match_result import MatchResult
@@ -99,8 +100,8 @@ FLIP_TOL = 0.25
 #: :func:`gromov.match` does.
 DIRECT_MARGIN, TURN_TOL, TURN_MARGIN = 0.15, 0.1, 0.1
 #: The dense map places each vertex by its distances to this many nearest samples
-#: (:func:`local_anchored_map`).
-N_LOCAL = 16
+#: (:func:`gromov.dense.local_anchored_map`), as a full match's does.
+N_LOCAL = DENSE_LOCAL
 #: The weight of the curvature term beside the distortion (:func:`curvature_costs`): a sample
 #: whose smoothed mean curvature differs from its image's by 1 costs as much as distances off by
 #: ``PARTIAL_CURVATURE`` x sqrt(area of the whole). The one-sided distortion alone prefers a wrong
@@ -786,24 +787,9 @@ def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int, unary=None
     return fwd, n_in, complete
 
 
-def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int) -> np.ndarray:
-    r"""Working vertex of Y for each working vertex of X from its ``k`` nearest landmarks:
-    :math:`T(v) = \arg\min_w \sum_{l \in N_k(v)} (a^Y_{wl} - a^X_{vl})^2`, with :math:`N_k(v)` the
-    ``k`` landmarks nearest to ``v`` on X (:func:`gromov.dense.anchored_map` over all of them
-    lets the far landmarks, whose distances a cut changes most, pull every point)."""
-    ax, ay = np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64)
-    k = int(min(max(k, 3), ax.shape[1]))
-    near = np.argpartition(ax, k - 1, axis=1)[:, :k]
-    m = np.zeros_like(ax)
-    np.put_along_axis(m, near, 1.0, axis=1)
-    cost = m @ (ay * ay).T
-    cost -= 2.0 * ((m * ax) @ ay.T)
-    return np.argmin(cost, axis=1).astype(np.int64)
-
-
 def _placed(sx, sy, P, img: SurfacePoints, wp: np.ndarray, k: int) -> np.ndarray:
     """Working vertex of Y for every working vertex of X, placed from the samples and their
-    images (:func:`local_anchored_map`, or :func:`gromov.dense.anchored_map` with ``k = 0``),
+    images (:func:`gromov.dense.local_anchored_map`, or :func:`gromov.dense.anchored_map` with ``k = 0``),
     the samples in the boundary band left out."""
     from .dense import anchored_map, landmark_distances
 
