@@ -5,7 +5,7 @@ import pytest
 
 import gromov
 from gromov.cli import main
-from gromov.dense import anchored_map
+from gromov.dense import anchored_map, landmark_distances, local_anchored_map
 import gromov.evaluate as evaluate
 from gromov.evaluate import GeodesicReference, dense_error, dense_errors
 from gromov.mesh import Mesh
@@ -134,6 +134,43 @@ def test_anchored_map_sets_aside_each_pairs_own_corrupted_landmarks():
     assert np.mean(alike == np.arange(m.n_vertices)) < 0.9
     with pytest.raises(ValueError, match="candidates"):
         anchored_map(ax, d[:, L], candidates=-1)
+
+
+def test_local_anchored_map_with_exact_landmark_distances_is_the_identity():
+    m = icosphere(3)
+    d = gromov.metric_solver(m, "geodesic").pairwise()
+    L = np.random.default_rng(0).choice(m.n_vertices, 40, replace=False)
+    np.testing.assert_array_equal(local_anchored_map(d[:, L], d[:, L], 16), np.arange(m.n_vertices))
+    with pytest.raises(ValueError, match="ax and ay"):
+        local_anchored_map(d[:, L], d[:, L[:-1]])
+    with pytest.raises(ValueError, match="local"):
+        gromov.dense.dense_maps(None, None, (), (), local=-1)
+
+
+def test_a_weld_does_not_carry_vertices_to_the_part_they_were_glued_to(data_dir):
+    """david0 with three welds against itself, each vertex placed from the diffusion distances
+    to 100 landmarks whose images are exact: the welds shorten the distances to the landmarks
+    across them, which pull vertices over to the part they were glued to when every landmark
+    counts (trimmed or not); from the 16 nearest none goes further than a tenth of the
+    diameter."""
+    from gromov.metrics.diffusion import correspondence_options
+    from gromov.perturb import weld
+    from gromov.resolution import simplify
+    from gromov.shape_metric import ShapeMetric
+
+    s = simplify(gromov.load(data_dir / "tosca" / "david0.off.gz"), 2000).mesh
+    clean = Mesh(s.vertices, s.faces)
+    p = weld(clean, 3)
+    welded, home = Mesh(p.mesh.vertices, p.mesh.faces), p.vertex_map
+    opts = correspondence_options("diffusion", None)   # as gromov.match measures them
+    sx = ShapeMetric(welded, "diffusion", resolution=None, metric_options=opts)
+    sy = ShapeMetric(clean, "diffusion", resolution=None, metric_options=opts)
+    L = sx.samples(100, 0)
+    ax, ay = landmark_distances(sx, L), landmark_distances(sy, home[L])
+    geodesic = gromov.metric_solver(clean, "geodesic").pairwise()
+    far = 0.1 * geodesic.max()
+    assert np.mean(geodesic[local_anchored_map(ax, ay, 16), home] > far) == 0.0
+    assert np.mean(geodesic[anchored_map(ax, ay), home] > far) > 0.01
 
 
 def test_point_clouds_get_images_at_points():

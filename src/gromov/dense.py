@@ -50,10 +50,10 @@ __all__ = ["DenseMap", "dense_maps", "anchored_map", "local_anchored_map", "land
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
-#: Each vertex placed from this many of its nearest landmarks (:func:`local_anchored_map`); 0:
-#: from all of them, trimmed (:func:`anchored_map`). A weld moves the far landmarks' distances
-#: (docs/design/dense.md, "Placed from the nearest landmarks").
-DENSE_LOCAL = 16
+#: Each vertex placed from this many of its nearest landmarks (:func:`local_anchored_map`); 0,
+#: the default: from all of them, trimmed (:func:`anchored_map`). 16 repairs welded shapes and
+#: loses on TOPKIDS (docs/design/dense.md, "Placed from the nearest landmarks").
+DENSE_LOCAL = 0
 #: With ``local=0``: the fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
@@ -208,7 +208,7 @@ def _sum_of_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return cost
 
 
-def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = DENSE_LOCAL) -> np.ndarray:
+def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = 16) -> np.ndarray:
     r"""Working vertex of Y for each working vertex of X from its ``k`` nearest landmarks:
 
     .. math:: T(v) = \arg\min_w \sum_{l \in N_k(v)} (a^Y_{wl} - a^X_{vl})^2 ,
@@ -224,7 +224,7 @@ def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = DENSE_LOCAL) -> 
         Distances from X's working vertices to X's landmarks.
     ay : ndarray (n_Y, L)
         Distances from Y's working vertices to the paired landmarks on Y.
-    k : int, default DENSE_LOCAL
+    k : int, default 16
         At least 3 and at most L are used.
 
     Returns
@@ -758,7 +758,7 @@ def _by_file_id(s, face, bary, vertex) -> DenseMap:
 
 
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
-               local: int = DENSE_LOCAL, keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
+               local: int | None = None, keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
                refine: str | None = DENSE_REFINE) -> tuple[DenseMap, DenseMap]:
     """Dense maps X -> Y and Y -> X from paired landmarks.
 
@@ -771,8 +771,9 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         ``(P, images of Q)``, on Y ``(images of P, Q)``.
     tau_scale : float, default DENSE_TAU_SCALE
         :func:`landmark_distances`.
-    local : int, default DENSE_LOCAL
-        Each working vertex placed from its ``local`` nearest landmarks
+    local : int, optional
+        Default: :data:`DENSE_LOCAL`, read at each call. Each working vertex placed from its
+        ``local`` nearest landmarks
         (:func:`local_anchored_map`); 0: from all of them, trimmed (:func:`anchored_map` with
         ``keep`` and ``rounds``).
     refine : {"input", "zoomout", None}, default DENSE_REFINE
@@ -787,10 +788,11 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     """
     if refine not in REFINEMENTS:
         raise ValueError(f"refine must be one of {REFINEMENTS}, got {refine!r}")
+    local = DENSE_LOCAL if local is None else local
+    if not (isinstance(local, (int, np.integer)) and local >= 0):
+        raise ValueError(f"local must be a non-negative number of landmarks, got {local!r}")
     ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
     ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
-    if int(local) < 0:
-        raise ValueError(f"local must be a non-negative number of landmarks, got {local!r}")
     if local:
         t_xy, t_yx = local_anchored_map(ax, ay, int(local)), local_anchored_map(ay, ax, int(local))
     else:

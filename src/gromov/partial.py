@@ -60,7 +60,7 @@ from scipy.sparse import csgraph
 from ._arrays import one_blas_thread
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
-from .dense import (DENSE_LOCAL, _at_vertices, _by_file_id, _input_basis, _input_images, _zoomout_steps,
+from .dense import (_at_vertices, _by_file_id, _input_basis, _input_images, _zoomout_steps,
                     local_anchored_map)
 from .errors import GromovWarning, MetricError, SmallPartWarning
 from .gmds import SurfacePoints, norm_value
@@ -100,8 +100,8 @@ FLIP_TOL = 0.25
 #: :func:`gromov.match` does.
 DIRECT_MARGIN, TURN_TOL, TURN_MARGIN = 0.15, 0.1, 0.1
 #: The dense map places each vertex by its distances to this many nearest samples
-#: (:func:`gromov.dense.local_anchored_map`), as a full match's does.
-N_LOCAL = DENSE_LOCAL
+#: (:func:`gromov.dense.local_anchored_map`).
+N_LOCAL = 16
 #: The weight of the curvature term beside the distortion (:func:`curvature_costs`): a sample
 #: whose smoothed mean curvature differs from its image's by 1 costs as much as distances off by
 #: ``PARTIAL_CURVATURE`` x sqrt(area of the whole). The one-sided distortion alone prefers a wrong
