@@ -12,7 +12,8 @@ import pytest
 
 import gromov
 from gromov.match_result import MatchResult
-from gromov.partial import boundary_distance, covered_region, match_partial, partial_zoomout, sample_weights
+from gromov.partial import (boundary_distance, bridged_distances, covered_region, match_partial, partial_zoomout,
+                            sample_weights)
 from gromov.perturb import cut
 from gromov.shape_metric import ShapeMetric
 from gromov.shapes import grid, icosphere, torus
@@ -222,6 +223,34 @@ def test_old_results_load_without_the_partial_fields():
     back = pickle.loads(pickle.dumps(old))
     assert back.partial is False and back.y_covered is None and np.isnan(back.covered_fraction)
     assert back.to_dict()["distance"] == r.distance
+
+
+def test_bridged_distances_bound_the_whole_distances_across_a_hole():
+    """A sphere with a polar cap removed: the part's geodesic distance bounds the whole
+    sphere's from above, the lower bound with chords across the hole bounds it from below
+    (within the meshes' discretisation, a quarter of an edge), and their middle is closer to
+    the whole's distance than the part's own; a closed shape keeps its distances."""
+    m = icosphere(4)
+    s = ShapeMetric(m, "geodesic", resolution=None)
+    P = s.samples(20, 0)
+    np.testing.assert_array_equal(bridged_distances(s, P), s.distances[P])
+    kept = m.vertices[:, 2] < 0.6
+    faces = m.faces[kept[m.faces].all(axis=1)]
+    used = np.unique(faces)
+    index = np.full(m.n_vertices, -1)
+    index[used] = np.arange(len(used))
+    part = gromov.Mesh(m.vertices[used], index[faces])
+    assert len(part.boundary_loops) == 1
+    sx = ShapeMetric(part, "geodesic", resolution=None)
+    P = sx.samples(30, 0)
+    whole = s.distances[np.ix_(used, used)][P]
+    own = sx.distances[P]
+    middle = bridged_distances(sx, P)
+    low = 2.0 * middle - own
+    tol = 0.25 * part.mean_edge_length
+    assert np.all(low <= whole + tol) and np.all(whole <= own + tol)
+    assert np.mean(low < own - tol) > 0.05   # the hole shortens some pairs' bound
+    assert np.abs(middle - whole).mean() < 0.5 * np.abs(own - whole).mean()
 
 
 def test_boundary_weights_on_a_grid():

@@ -72,8 +72,8 @@ from .search import (SIGNATURE_STARTS, SearchOptions, _candidates, _orient, _Sea
 from .shape_metric import ShapeMetric
 
 __all__ = ["BOUNDARY_WIDTH", "PARTIAL_CURVATURE", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START",
-           "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix",
-           "boundary_distance", "covered_region", "curvature_costs", "in_whole_metric", "local_anchored_map",
+           "PARTIAL_BRIDGE", "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix",
+           "boundary_distance", "bridged_distances", "covered_region", "curvature_costs", "in_whole_metric", "local_anchored_map",
            "match_partial", "part_curvature", "partial_matrix", "partial_zoomout", "sample_weights"]
 
 logger = logging.getLogger(__name__)
@@ -99,6 +99,10 @@ FLIP_TOL = 0.25
 #: curvature better by ``TURN_MARGIN`` (a body turned half about its long axis), as
 #: :func:`gromov.match` does.
 DIRECT_MARGIN, TURN_TOL, TURN_MARGIN = 0.15, 0.1, 0.1
+#: With the geodesic metric, the part's distances from its samples are taken halfway between
+#: the part's own and a lower bound that lets a path cross each hole (:func:`bridged_distances`):
+#: a hole lengthens every path around it on the part and not on the whole.
+PARTIAL_BRIDGE = True
 #: The dense map places each vertex by its distances to this many nearest samples
 #: (:func:`gromov.dense.local_anchored_map`).
 N_LOCAL = 16
@@ -176,6 +180,47 @@ def sample_weights(distance_to_boundary: np.ndarray, width: float) -> np.ndarray
     if not width > 0:
         return np.ones_like(b)
     return np.minimum(1.0, b / width) ** 2
+
+
+def bridged_distances(sx: ShapeMetric, P: np.ndarray) -> np.ndarray:
+    r"""``(len(P), n)``: geodesic distances from the part's samples ``P`` to its working
+    vertices, halfway between the part's own and a lower bound on the whole's.
+
+    A path on the part is a path on the whole, so the part's distance :math:`d` bounds the
+    whole's from above; a hole makes it go round. A path on the whole that crosses a hole
+    leaves the part at one vertex ``a`` of the hole's boundary loop and comes back at another,
+    ``b``, after at least the straight chord :math:`\lVert x_a - x_b \rVert`. With :math:`c^*`
+    the shortest chains of such chords (within each boundary loop) and paths on the part
+    between boundary vertices,
+
+    .. math:: d_-(p, q) = \min\Big(d(p, q),\ \min_{a, b} d(p, a) + c^*(a, b) + d(b, q)\Big)
+
+    bounds the whole's distance from below (where each missing piece is bounded by one loop,
+    and up to the change of pose), and :math:`\tfrac12 (d_- + d)` is returned: the middle of the
+    interval the whole's distance lies in. Bronstein, Bronstein & Kimmel ("Partial similarity
+    of objects", IJCV 2009) set aside the pairs whose path a boundary may have lengthened; here
+    they keep a target. On a closed part, ``d`` itself.
+    """
+    D = sx.distances
+    P = np.asarray(P, dtype=np.int64)
+    loops = [np.asarray(loop, dtype=np.int64) for loop in sx.mesh.boundary_loops]
+    if not loops:
+        return D[P].copy()
+    B = np.concatenate(loops)
+    label = np.repeat(np.arange(len(loops)), [len(loop) for loop in loops])
+    V = sx.mesh.vertices[B]
+    chord = np.linalg.norm(V[:, None, :] - V[None, :, :], axis=2)
+    chord[label[:, None] != label[None, :]] = np.inf
+    C = np.minimum(D[np.ix_(B, B)], chord)
+    for k in range(len(B)):   # Floyd-Warshall over the boundary vertices
+        np.minimum(C, C[:, k:k + 1] + C[k:k + 1, :], out=C)
+    to_b = D[np.ix_(P, B)]
+    via = np.min(to_b[:, :, None] + C[None, :, :], axis=1)   # (len(P), len(B)): p ... b, hole crossed
+    low = D[P].copy()
+    rows = D[B]
+    for j in range(len(B)):
+        np.minimum(low, via[:, j:j + 1] + rows[j:j + 1, :], out=low)
+    return 0.5 * (low + D[P])
 
 
 def _one_sided_gmds(sy: ShapeMetric, dx_pp: np.ndarray, W: np.ndarray, img: SurfacePoints,
@@ -297,7 +342,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
                   search: SearchOptions | None = None, dense: bool | str = False,
                   boundary: float = BOUNDARY_WIDTH, same_time: bool = True,
                   n_refine: int = N_REFINE, interior_only: bool = True, n_local: int = N_LOCAL,
-                  curvature: float = PARTIAL_CURVATURE) -> MatchResult:
+                  curvature: float = PARTIAL_CURVATURE, bridge: bool = PARTIAL_BRIDGE) -> MatchResult:
     r"""A part ``X`` matched into a whole shape ``Y``: :func:`gromov.match` with ``partial=True``.
 
     Parameters
@@ -329,6 +374,10 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         :math:`\sum_i (\sum_j w_i w_j) \, \lambda^2 \, \text{area}(Y) \, (H_X(p_i) - H_Y(q_i))^2`
         over the smoothed mean curvatures (:func:`curvature_costs`); 0: the distortion alone.
         The distance reported is the distortion alone either way.
+    bridge : bool, default PARTIAL_BRIDGE
+        With the geodesic metric, the part's distances from its samples halfway between its own
+        and a lower bound that lets paths cross its holes (:func:`bridged_distances`), in the
+        search, GMDS and the dense placement; False: the part's own.
 
     Returns
     -------
@@ -370,7 +419,9 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     order = np.argsort(-np.minimum(wp0, 1.0), kind="stable")
     P, wp = P0[order], wp0[order]
     Q = sy.samples(n_samples, seed)
-    dx_pp = sx.distances[np.ix_(P, P)]
+    bridged = bool(bridge) and sx.metric == "geodesic"
+    rows = bridged_distances(sx, P) if bridged else None
+    dx_pp = rows[:, P] if bridged else sx.distances[np.ix_(P, P)]
     W = np.outer(wp, wp)
     np.fill_diagonal(W, 0.0)
     if not W.sum() > 0:
@@ -389,7 +440,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     r = residual[off]
     xy_face, xy_bary, xy_vertex = sy.locate(img)
     # the dense map (working vertices of X -> working vertices of Y), the covered region
-    T = _placed(sx, sy, P, img, wp, n_local)
+    T = _placed(sx, sy, P, img, wp, n_local, rows.T if bridged else None)
     h = sy.mesh.mean_edge_length
     covered_w = covered_region(sy.mesh, T, COVER_RADIUS * h, COVER_CLOSE * h)
     covered = covered_w[sy.working.source_nearest]   # each input vertex as its nearest working vertex
@@ -702,7 +753,7 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
         if direct:
             best = min(direct, key=lambda f: f[0])
     if oriented and best[5] > 0.5 and turn:
-        best = _prefer_curvature(sx, sy, P, starts_all, score, refine, best, hx)
+        best = _prefer_curvature(sx, sy, P, starts_all, score, refine, best, hx, dx_pp)
     logger.debug("partial fits: %s", [(f[0], f[5]) for f in fits])
     return best[1], best[2], best[3], best[4], best[5]
 
@@ -717,7 +768,7 @@ def part_curvature(sx: ShapeMetric, sy: ShapeMetric) -> np.ndarray:
     return mean_curvature(sx.mesh, sx.normals[0], scale=CURVATURE_SCALE * ratio) * np.sqrt(ratio)
 
 
-def _prefer_curvature(sx, sy, P, starts, score, refine, best, hx=None):
+def _prefer_curvature(sx, sy, P, starts, score, refine, best, hx=None, dx_pp=None):
     """A direct map against its half turn (:func:`gromov.gh._prefer_curvature` for one side):
     among the clearly direct starts (agreement above 1/2 + ``DIRECT_MARGIN``) within
     ``TURN_TOL`` of the best start's distortion, the one whose images keep the curvature best;
@@ -731,7 +782,8 @@ def _prefer_curvature(sx, sy, P, starts, score, refine, best, hx=None):
 
     m_best = mismatch(best[1].vertex(faces))
     s0 = min(score(img) for img in starts)
-    agree = _orient(sx, sy, P, sx.distances[np.ix_(P, P)])(np.stack(starts))
+    dx_pp = sx.distances[np.ix_(P, P)] if dx_pp is None else dx_pp
+    agree = _orient(sx, sy, P, dx_pp)(np.stack(starts))
     near = [img for img, a in zip(starts, agree) if a > 0.5 + DIRECT_MARGIN and score(img) <= (1 + TURN_TOL) ** 2 * s0]
     logger.debug("partial: curvature mismatch %.3g, %d direct starts near (agreements %s, scores %s of %.3g)",
                  m_best, len(near), np.round(agree, 2), [round(score(i) / s0, 2) for i in starts], s0)
@@ -787,14 +839,15 @@ def _search(sx, sy, P, dx_pp, search: SearchOptions, n_interior: int, unary=None
     return fwd, n_in, complete
 
 
-def _placed(sx, sy, P, img: SurfacePoints, wp: np.ndarray, k: int) -> np.ndarray:
+def _placed(sx, sy, P, img: SurfacePoints, wp: np.ndarray, k: int, ax_all: np.ndarray | None = None) -> np.ndarray:
     """Working vertex of Y for every working vertex of X, placed from the samples and their
     images (:func:`gromov.dense.local_anchored_map`, or :func:`gromov.dense.anchored_map` with ``k = 0``),
-    the samples in the boundary band left out."""
+    the samples in the boundary band left out; ``ax_all``: X's distances to all samples
+    ``(n, len(P))``, if not the metric's own (:func:`bridged_distances`)."""
     from .dense import anchored_map, landmark_distances
 
     keep = wp >= 0.5 if (wp >= 0.5).sum() >= 3 else np.ones(len(P), dtype=bool)
-    ax = landmark_distances(sx, P[keep])
+    ax = landmark_distances(sx, P[keep]) if ax_all is None else ax_all[:, keep]
     ay = landmark_distances(sy, SurfacePoints(img.face[keep], img.bary[keep]))
     return local_anchored_map(ax, ay, k) if k else anchored_map(ax, ay)
 
