@@ -173,10 +173,7 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
     -------
     ndarray (n_X,) of int64
     """
-    ax = np.asarray(ax)
-    ay = np.asarray(ay)
-    if ax.ndim != 2 or ay.ndim != 2 or ax.shape[1] != ay.shape[1]:
-        raise ValueError(f"ax and ay must be (n_X, L) and (n_Y, L), got {ax.shape} and {ay.shape}")
+    ax, ay = _landmark_pair(np.asarray(ax), np.asarray(ay))
     if not 0.0 < keep <= 1.0:
         raise ValueError(f"keep must be in (0, 1], got {keep!r}")
     # the costs in single precision: half the time of the products, and the map is the same
@@ -197,6 +194,13 @@ def anchored_map(ax: np.ndarray, ay: np.ndarray, *, keep: float = DENSE_KEEP,
         e = ((ay[T] - ax) ** 2).mean(axis=0)
         idx = np.sort(np.argsort(e, kind="stable")[:h])
     return T.astype(np.int64)
+
+
+def _landmark_pair(ax: np.ndarray, ay: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(ax, ay)`` checked: distances of both shapes' vertices to the same ``L`` landmarks."""
+    if ax.ndim != 2 or ay.ndim != 2 or ax.shape[1] != ay.shape[1]:
+        raise ValueError(f"ax and ay must be (n_X, L) and (n_Y, L), got {ax.shape} and {ay.shape}")
+    return ax, ay
 
 
 def _sum_of_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -220,10 +224,8 @@ def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = 16) -> np.ndarra
 
     Parameters
     ----------
-    ax : ndarray (n_X, L)
-        Distances from X's working vertices to X's landmarks.
-    ay : ndarray (n_Y, L)
-        Distances from Y's working vertices to the paired landmarks on Y.
+    ax, ay : ndarray (n_X, L), (n_Y, L)
+        As :func:`anchored_map`.
     k : int, default 16
         At least 3 and at most L are used.
 
@@ -231,9 +233,7 @@ def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = 16) -> np.ndarra
     -------
     ndarray (n_X,) of int64
     """
-    ax, ay = np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64)
-    if ax.ndim != 2 or ay.ndim != 2 or ax.shape[1] != ay.shape[1]:
-        raise ValueError(f"ax and ay must be (n_X, L) and (n_Y, L), got {ax.shape} and {ay.shape}")
+    ax, ay = _landmark_pair(np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64))
     k = int(min(max(k, 3), ax.shape[1]))
     near = np.argpartition(ax, k - 1, axis=1)[:, :k]
     m = np.zeros_like(ax)

@@ -342,7 +342,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
                   search: SearchOptions | None = None, dense: bool | str = False,
                   boundary: float = BOUNDARY_WIDTH, same_time: bool = True,
                   n_refine: int = N_REFINE, interior_only: bool = True, n_local: int = N_LOCAL,
-                  curvature: float = PARTIAL_CURVATURE, bridge: bool = PARTIAL_BRIDGE) -> MatchResult:
+                  curvature: float = PARTIAL_CURVATURE, bridge: bool | None = None) -> MatchResult:
     r"""A part ``X`` matched into a whole shape ``Y``: :func:`gromov.match` with ``partial=True``.
 
     Parameters
@@ -374,8 +374,8 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         :math:`\sum_i (\sum_j w_i w_j) \, \lambda^2 \, \text{area}(Y) \, (H_X(p_i) - H_Y(q_i))^2`
         over the smoothed mean curvatures (:func:`curvature_costs`); 0: the distortion alone.
         The distance reported is the distortion alone either way.
-    bridge : bool, default PARTIAL_BRIDGE
-        With the geodesic metric, the part's distances from its samples halfway between its own
+    bridge : bool, optional
+        Default: :data:`PARTIAL_BRIDGE`, read at each call. With the geodesic metric, the part's distances from its samples halfway between its own
         and a lower bound that lets paths cross its holes (:func:`bridged_distances`), in the
         search, GMDS and the dense placement; False: the part's own.
 
@@ -419,7 +419,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     order = np.argsort(-np.minimum(wp0, 1.0), kind="stable")
     P, wp = P0[order], wp0[order]
     Q = sy.samples(n_samples, seed)
-    bridged = bool(bridge) and sx.metric == "geodesic"
+    bridged = bool(PARTIAL_BRIDGE if bridge is None else bridge) and sx.metric == "geodesic"
     rows = bridged_distances(sx, P) if bridged else None
     dx_pp = rows[:, P] if bridged else sx.distances[np.ix_(P, P)]
     W = np.outer(wp, wp)
