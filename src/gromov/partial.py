@@ -57,7 +57,7 @@ from functools import cached_property
 import numpy as np
 from scipy.sparse import csgraph
 
-from ._arrays import one_blas_thread
+from ._arrays import one_blas_thread, readonly
 from ._defaults import DEFAULT_RESOLUTION
 from ._gmds_kernel import sweep
 from .dense import (_at_vertices, _by_file_id, _input_basis, _input_images, _zoomout_steps,
@@ -221,6 +221,16 @@ def bridged_distances(sx: ShapeMetric, P: np.ndarray) -> np.ndarray:
     for j in range(len(B)):
         np.minimum(low, via[:, j:j + 1] + rows[j:j + 1, :], out=low)
     return 0.5 * (low + D[P])
+
+
+def _bridged_rows(sx: ShapeMetric, P0: np.ndarray, n_samples: int, seed: int) -> np.ndarray:
+    """:func:`bridged_distances` from the part's samples ``P0``, once per part and sampling (a
+    part matched into many wholes, :func:`partial_matrix`, reuses them)."""
+    cache = sx.__dict__.setdefault("_bridged", {})
+    key = (int(n_samples), seed)
+    if key not in cache:
+        cache[key] = readonly(bridged_distances(sx, P0))
+    return cache[key]
 
 
 def _one_sided_gmds(sy: ShapeMetric, dx_pp: np.ndarray, W: np.ndarray, img: SurfacePoints,
@@ -420,7 +430,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     P, wp = P0[order], wp0[order]
     Q = sy.samples(n_samples, seed)
     bridged = bool(PARTIAL_BRIDGE if bridge is None else bridge) and sx.metric == "geodesic"
-    rows = bridged_distances(sx, P) if bridged else None
+    rows = _bridged_rows(sx, P0, n_samples, seed)[order] if bridged else None
     dx_pp = rows[:, P] if bridged else sx.distances[np.ix_(P, P)]
     W = np.outer(wp, wp)
     np.fill_diagonal(W, 0.0)
