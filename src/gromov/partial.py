@@ -99,10 +99,12 @@ FLIP_TOL = 0.25
 #: curvature better by ``TURN_MARGIN`` (a body turned half about its long axis), as
 #: :func:`gromov.match` does.
 DIRECT_MARGIN, TURN_TOL, TURN_MARGIN = 0.15, 0.1, 0.1
-#: With the geodesic metric, the part's distances from its samples are taken halfway between
-#: the part's own and a lower bound that lets a path cross each hole (:func:`bridged_distances`):
-#: a hole lengthens every path around it on the part and not on the whole.
-PARTIAL_BRIDGE = True
+#: With the geodesic metric, take the part's distances from its samples halfway between the
+#: part's own and a lower bound that lets a path cross each hole (:func:`bridged_distances`): a
+#: hole lengthens every path around it on the part and not on the whole. An option: it places
+#: parts with large holes far better and a part of a small torus into its own whole less
+#: exactly (docs/design/partial.md, "Paths across the holes").
+PARTIAL_BRIDGE = False
 #: :func:`bridged_distances` takes at most this many boundary vertices as the ends of its
 #: chords (every k-th of each loop beyond it): its cost grows as their number cubed (under a
 #: second for 600 beside 3,200 working vertices).
