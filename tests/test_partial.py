@@ -253,6 +253,26 @@ def test_bridged_distances_bound_the_whole_distances_across_a_hole():
     assert np.abs(middle - whole).mean() < 0.5 * np.abs(own - whole).mean()
 
 
+def test_bridged_distances_with_fewer_chord_ends_stay_between(monkeypatch):
+    """Beyond BRIDGE_BOUNDARY boundary vertices only every k-th ends a chord: fewer ways across
+    the hole, so the result lies between the one with every chord and the part's own."""
+    import gromov.partial as gp
+
+    m = icosphere(4)
+    kept = m.vertices[:, 2] < 0.6
+    faces = m.faces[kept[m.faces].all(axis=1)]
+    used = np.unique(faces)
+    index = np.full(m.n_vertices, -1)
+    index[used] = np.arange(len(used))
+    sx = ShapeMetric(gromov.Mesh(m.vertices[used], index[faces]), "geodesic", resolution=None)
+    P = sx.samples(30, 0)
+    every = bridged_distances(sx, P)
+    monkeypatch.setattr(gp, "BRIDGE_BOUNDARY", 10)
+    fewer = bridged_distances(sx, P)
+    assert np.all(fewer >= every - 1e-12) and np.all(fewer <= sx.distances[P] + 1e-12)
+    assert np.any(fewer > every + 1e-9)
+
+
 def test_boundary_weights_on_a_grid():
     g = grid(11, 11, width=1.0, height=1.0)
     b = boundary_distance(g)

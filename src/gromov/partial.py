@@ -396,9 +396,10 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         over the smoothed mean curvatures (:func:`curvature_costs`); 0: the distortion alone.
         The distance reported is the distortion alone either way.
     bridge : bool, optional
-        Default: :data:`PARTIAL_BRIDGE`, read at each call. With the geodesic metric, the part's distances from its samples halfway between its own
-        and a lower bound that lets paths cross its holes (:func:`bridged_distances`), in the
-        search, GMDS and the dense placement; False: the part's own.
+        Default: :data:`PARTIAL_BRIDGE`, read at each call. With the geodesic metric, the
+        part's distances from its samples halfway between its own and a lower bound that lets
+        paths cross its holes (:func:`bridged_distances`), in the search, GMDS and the dense
+        placement; False: the part's own.
 
     Returns
     -------
