@@ -2,7 +2,7 @@
 
 Run:  .venv/bin/python benchmarks/bench_partial.py [--data DIR] [--classes cat,dog,...] [--per-class N]
                                                   [--kinds plane,holes] [--vertices N] [--radius F] [--keep LO,HI]
-                                                  [--bridge 0|1] [--json OUT]
+                                                  [--bridge 0|1|choose] [--json OUT]
 
 The parts are those of SHREC'16 *Partial Matching of Deformable Shapes* (Cosmo et al., 3DOR
 2016), made by :func:`gromov.perturb.cut`: ``plane`` keeps one side of a plane of random
@@ -519,7 +519,7 @@ def main(argv=None):
                          "ours,ours_partial,pyfm)")
     ap.add_argument("--quick", action="store_true",
                     help=f"{','.join(QUICK['classes'])}, {QUICK['per_class']} part per class and kind")
-    ap.add_argument("--bridge", type=int, choices=(0, 1), default=None,
+    ap.add_argument("--bridge", choices=("0", "1", "choose"), default=None,
                     help="gromov.partial.PARTIAL_BRIDGE for this run (default: the package's)")
     ap.add_argument("--json", default=str(HERE / "results" / "partial.json"))
     ap.add_argument("--add-baseline", action="store_true",
@@ -547,7 +547,7 @@ def main(argv=None):
         if len(span) != 2 or not 0.0 < span[0] <= span[1] < 1.0:
             ap.error(f"--keep takes LO,HI with 0 < LO <= HI < 1, got {args.keep!r}")
     if args.bridge is not None:
-        gromov.partial.PARTIAL_BRIDGE = bool(args.bridge)
+        gromov.partial.PARTIAL_BRIDGE = {"0": False, "1": True}.get(args.bridge, args.bridge)
     res = {"gromov": {"version": gromov.__version__,
                       "match": {"metric": "diffusion", "dense": "input", "n_samples": 100,
                                 "radius_fraction_of_part_diameter": args.radius or None},

@@ -273,6 +273,42 @@ def test_bridged_distances_with_fewer_chord_ends_stay_between(monkeypatch):
     assert np.any(fewer > every + 1e-9)
 
 
+def test_interval_misfit_is_zero_for_the_truth_and_not_for_a_turned_map():
+    """The sphere without its cap matched into the whole sphere: the identity keeps every
+    distance between the bridged bound and the part's own (within the discretisation), the
+    samples exchanged at random do not."""
+    from gromov.gmds import SurfacePoints
+    from gromov.partial import interval_misfit
+
+    m = icosphere(4)
+    s = ShapeMetric(m, "geodesic", resolution=None)
+    kept = m.vertices[:, 2] < 0.6
+    faces = m.faces[kept[m.faces].all(axis=1)]
+    used = np.unique(faces)
+    index = np.full(m.n_vertices, -1)
+    index[used] = np.arange(len(used))
+    sx = ShapeMetric(gromov.Mesh(m.vertices[used], index[faces]), "geodesic", resolution=None)
+    P = sx.samples(30, 0)
+    own = sx.distances[np.ix_(P, P)]
+    low = 2.0 * bridged_distances(sx, P)[:, P] - own
+    W = 1.0 - np.eye(len(P))
+    truth = interval_misfit(s, SurfacePoints.at_vertices(m, used[P]), low, own, W)
+    shuffled = used[P][np.random.default_rng(0).permutation(len(P))]
+    wrong = interval_misfit(s, SurfacePoints.at_vertices(m, shuffled), low, own, W)
+    h = m.mean_edge_length
+    assert truth < 0.05 * h and wrong > 5 * h
+
+
+def test_bridge_choose_keeps_a_closed_part_as_it_is():
+    x, y = icosphere(2), icosphere(2)
+    a = match_partial(x, y, n_samples=20, bridge="choose", resolution=None)
+    b = match_partial(x, y, n_samples=20, bridge=False, resolution=None)
+    assert a.distance == b.distance
+    np.testing.assert_array_equal(a.x_to_y_vertex, b.x_to_y_vertex)
+    with pytest.raises(ValueError, match="bridge"):
+        match_partial(x, y, n_samples=20, bridge="both")
+
+
 def test_boundary_weights_on_a_grid():
     g = grid(11, 11, width=1.0, height=1.0)
     b = boundary_distance(g)

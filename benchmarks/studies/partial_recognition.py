@@ -2,6 +2,7 @@
 
 Run:  .venv/bin/python benchmarks/studies/partial_recognition.py [--data DIR] [--per-class 1]
           [--keep 0.6] [--kind plane] [--jobs 2] [--json benchmarks/studies/partial_recognition.json]
+          [--set KIND KEEP JSON ...] [--bridge 0|1|choose]
 
 For each TOSCA class, ``--per-class`` parts are cut (:func:`gromov.perturb.cut`, ``--kind``,
 keeping ``--keep`` of the area, seed = the part's number) from the class's lowest poses; each part
@@ -14,7 +15,9 @@ of their class (the aim: at least 95%), with the rank of the nearest
 whole of the right class and the covered fraction of the area, per part, in the JSON; and the
 same fraction ranked by the relative distance ÷ the covered fraction (``gromov pairwise
 --partial``'s score), ``nearest_of_own_class_by_score``. ``--rescore JSON`` adds that to a
-results file made before, from its rows, without matching again.
+results file made before, from its rows, without matching again. ``--set KIND KEEP JSON``,
+repeated, runs several sets of parts against the wholes prepared once (instead of ``--kind``,
+``--keep``, ``--json``); ``--bridge`` sets ``gromov.partial.PARTIAL_BRIDGE`` for the run.
 """
 
 from __future__ import annotations
@@ -71,6 +74,10 @@ def main(argv=None) -> None:
     ap.add_argument("--kind", choices=("plane", "holes"), default="plane")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", default=str(HERE / "partial_recognition.json"))
+    ap.add_argument("--set", nargs=3, action="append", metavar=("KIND", "KEEP", "JSON"), dest="sets",
+                    help="a set of parts (repeatable), instead of --kind, --keep and --json")
+    ap.add_argument("--bridge", choices=("0", "1", "choose"), default=None,
+                    help="gromov.partial.PARTIAL_BRIDGE for this run (default: the package's)")
     ap.add_argument("--rescore", default=None, metavar="JSON", help="add the score's ranking to this file and stop")
     args = ap.parse_args(argv)
     if args.rescore:
@@ -82,14 +89,20 @@ def main(argv=None) -> None:
         print(f"{args.rescore}: own class first by the relative distance {res['nearest_of_own_class']:.1%}, "
               f"by the score {res['nearest_of_own_class_by_score']:.1%}")
         return
-    global _PART, _WHOLES
+    global _WHOLES
 
     import gromov
+    import gromov.partial
     from gromov import ShapeMetric
     from gromov.errors import GromovWarning
     from gromov.experiments import datasets
-    from gromov.perturb import cut
 
+    if args.bridge is not None:
+        gromov.partial.PARTIAL_BRIDGE = {"0": False, "1": True}.get(args.bridge, args.bridge)
+    sets = [(k, float(v), j) for k, v, j in args.sets] if args.sets else [(args.kind, args.keep, args.json)]
+    for kind, _, _ in sets:
+        if kind not in ("plane", "holes"):
+            ap.error(f"--set KIND must be plane or holes, got {kind!r}")
     warnings.simplefilter("ignore", GromovWarning)
     t0 = time.perf_counter()
     tosca = datasets.TOSCA(Path(args.data) / "tosca")
@@ -99,11 +112,26 @@ def main(argv=None) -> None:
         s.distances, s.diameter, s.descriptors, s.samples(100, 0)  # noqa: B018 - prepared once, before the fork
     t_prepare = time.perf_counter() - t0
     print(f"{len(_WHOLES)} wholes prepared in {t_prepare:.0f} s", flush=True)
+    for kind, keep, out in sets:
+        run_set(tosca, names, kind, keep, out, args, argv, t_prepare)
+
+
+def run_set(tosca, names, kind: str, keep: float, out: str, args, argv, t_prepare: float) -> None:
+    """One set of parts (``kind``, keeping ``keep`` of the area), each matched into every whole
+    but its source; the results written to ``out``."""
+    global _PART
+
+    import gromov
+    import gromov.partial
+    from gromov import ShapeMetric
+    from gromov.perturb import cut
+
+    t0 = time.perf_counter()
     rows = []
     for cls in tosca.classes:
         for k, pose in enumerate(tosca.poses(cls)[:args.per_class]):
             src = names.index((cls, pose))
-            p = cut(tosca.load(cls, pose), args.keep, kind=args.kind, seed=k)
+            p = cut(tosca.load(cls, pose), keep, kind=kind, seed=k)
             _PART = ShapeMetric(gromov.Mesh(p.mesh.vertices, p.mesh.faces), "geodesic")
             _PART.distances  # noqa: B018
             others = [j for j in range(len(names)) if j != src]
@@ -125,13 +153,14 @@ def main(argv=None) -> None:
     acc = float(np.mean([r["correct"] for r in rows]))
     res = {"command": "python benchmarks/studies/partial_recognition.py " + shlex.join(
                argv if argv is not None else sys.argv[1:]),
-           "kind": args.kind, "keep": args.keep, "per_class": args.per_class, "wholes": len(names),
-           "metric": "geodesic", "nearest_of_own_class": acc,
+           "kind": kind, "keep": keep, "per_class": args.per_class, "wholes": len(names),
+           "metric": "geodesic", "bridge": gromov.partial.PARTIAL_BRIDGE, "nearest_of_own_class": acc,
            "nearest_of_own_class_by_score": own_class_first(rows, True), "parts": len(rows),
-           "seconds_prepare": t_prepare, "seconds": time.perf_counter() - t0, "jobs": args.jobs,
+           "seconds_prepare": t_prepare, "seconds": t_prepare + time.perf_counter() - t0, "jobs": args.jobs,
            "load_average_end": os.getloadavg(), "rows": rows}
-    write_results(args.json, res)
-    print(f"nearest whole of the part's class: {acc:.1%} of {len(rows)} parts")
+    write_results(out, res)
+    print(f"{kind} {keep}: nearest whole of the part's class: {acc:.1%} of {len(rows)} parts, "
+          f"{res['nearest_of_own_class_by_score']:.1%} by the score", flush=True)
 
 
 if __name__ == "__main__":
