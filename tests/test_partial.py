@@ -305,8 +305,9 @@ def test_bridge_choose_keeps_a_closed_part_as_it_is():
     b = match_partial(x, y, n_samples=20, bridge=False, resolution=None)
     assert a.distance == b.distance
     np.testing.assert_array_equal(a.x_to_y_vertex, b.x_to_y_vertex)
-    with pytest.raises(ValueError, match="bridge"):
-        match_partial(x, y, n_samples=20, bridge="both")
+    for bad in ("both", 1, 0.5):
+        with pytest.raises(ValueError, match="bridge"):
+            match_partial(x, y, n_samples=20, bridge=bad)
 
 
 def test_boundary_weights_on_a_grid():

@@ -470,8 +470,9 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     P, wp = P0[order], wp0[order]
     Q = sy.samples(n_samples, seed)
     mode = PARTIAL_BRIDGE if bridge is None else bridge
-    if not any(mode is m or (isinstance(m, str) and mode == m) for m in BRIDGE_MODES):
+    if not (mode in BRIDGE_MODES[2:] if isinstance(mode, str) else isinstance(mode, (bool, np.bool_))):
         raise ValueError(f"bridge must be True, False or 'choose', got {mode!r}")
+    mode = mode if isinstance(mode, str) else bool(mode)
     # a closed part has no hole to bridge; the diffusion metric is not a path length
     bridged = mode is not False and sx.metric == "geodesic" and len(sx.mesh.boundary_loops) > 0
     rows = _bridged_rows(sx, P0, n_samples, seed)[order] if bridged else None
