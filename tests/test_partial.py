@@ -225,21 +225,27 @@ def test_old_results_load_without_the_partial_fields():
     assert back.to_dict()["distance"] == r.distance
 
 
-def test_bridged_distances_bound_the_whole_distances_across_a_hole():
-    """A sphere with a polar cap removed: the part's geodesic distance bounds the whole
-    sphere's from above, the lower bound with chords across the hole bounds it from below
-    (within the meshes' discretisation, a quarter of an edge), and their middle is closer to
-    the whole's distance than the part's own; a closed shape keeps its distances."""
+def _capless_sphere():
+    """An icosphere and the part of it below z = 0.6 (a polar cap removed): ``(whole, part,
+    the part's vertices' ids on the whole)``."""
     m = icosphere(4)
-    s = ShapeMetric(m, "geodesic", resolution=None)
-    P = s.samples(20, 0)
-    np.testing.assert_array_equal(bridged_distances(s, P), s.distances[P])
     kept = m.vertices[:, 2] < 0.6
     faces = m.faces[kept[m.faces].all(axis=1)]
     used = np.unique(faces)
     index = np.full(m.n_vertices, -1)
     index[used] = np.arange(len(used))
-    part = gromov.Mesh(m.vertices[used], index[faces])
+    return m, gromov.Mesh(m.vertices[used], index[faces]), used
+
+
+def test_bridged_distances_bound_the_whole_distances_across_a_hole():
+    """A sphere with a polar cap removed: the part's geodesic distance bounds the whole
+    sphere's from above, the lower bound with chords across the hole bounds it from below
+    (within the meshes' discretisation, a quarter of an edge), and their middle is closer to
+    the whole's distance than the part's own; a closed shape keeps its distances."""
+    m, part, used = _capless_sphere()
+    s = ShapeMetric(m, "geodesic", resolution=None)
+    P = s.samples(20, 0)
+    np.testing.assert_array_equal(bridged_distances(s, P), s.distances[P])
     assert len(part.boundary_loops) == 1
     sx = ShapeMetric(part, "geodesic", resolution=None)
     P = sx.samples(30, 0)
@@ -258,13 +264,7 @@ def test_bridged_distances_with_fewer_chord_ends_stay_between(monkeypatch):
     the hole, so the result lies between the one with every chord and the part's own."""
     import gromov.partial as gp
 
-    m = icosphere(4)
-    kept = m.vertices[:, 2] < 0.6
-    faces = m.faces[kept[m.faces].all(axis=1)]
-    used = np.unique(faces)
-    index = np.full(m.n_vertices, -1)
-    index[used] = np.arange(len(used))
-    sx = ShapeMetric(gromov.Mesh(m.vertices[used], index[faces]), "geodesic", resolution=None)
+    sx = ShapeMetric(_capless_sphere()[1], "geodesic", resolution=None)
     P = sx.samples(30, 0)
     every = bridged_distances(sx, P)
     monkeypatch.setattr(gp, "BRIDGE_BOUNDARY", 10)
@@ -273,21 +273,16 @@ def test_bridged_distances_with_fewer_chord_ends_stay_between(monkeypatch):
     assert np.any(fewer > every + 1e-9)
 
 
-def test_interval_misfit_is_zero_for_the_truth_and_not_for_a_turned_map():
+def test_interval_misfit_is_zero_for_the_truth_and_not_for_shuffled_samples():
     """The sphere without its cap matched into the whole sphere: the identity keeps every
     distance between the bridged bound and the part's own (within the discretisation), the
     samples exchanged at random do not."""
     from gromov.gmds import SurfacePoints
     from gromov.partial import interval_misfit
 
-    m = icosphere(4)
+    m, part, used = _capless_sphere()
     s = ShapeMetric(m, "geodesic", resolution=None)
-    kept = m.vertices[:, 2] < 0.6
-    faces = m.faces[kept[m.faces].all(axis=1)]
-    used = np.unique(faces)
-    index = np.full(m.n_vertices, -1)
-    index[used] = np.arange(len(used))
-    sx = ShapeMetric(gromov.Mesh(m.vertices[used], index[faces]), "geodesic", resolution=None)
+    sx = ShapeMetric(part, "geodesic", resolution=None)
     P = sx.samples(30, 0)
     own = sx.distances[np.ix_(P, P)]
     low = 2.0 * bridged_distances(sx, P)[:, P] - own
