@@ -12,7 +12,7 @@ import pytest
 
 import gromov
 from gromov.errors import SmallPartWarning
-from gromov.partial import SMALL_PART, match_partial, partial_matrix
+from gromov.partial import PARTIAL_RANK_BRIDGE, SMALL_PART, match_partial, partial_matrix
 from gromov.perturb import cut
 from gromov.retrieval import nearest_wholes
 from gromov.shapes import icosphere, rolled_grid, torus
@@ -56,7 +56,7 @@ def test_matrix_is_match_partial_pair_by_pair(shapes, matrix):
         y = [part, wholes["A"], wholes["fat"], wholes["sphere"]][j]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SmallPartWarning)
-            r = match_partial(x, y, n_samples=N, resolution=None)
+            r = match_partial(x, y, n_samples=N, resolution=None, bridge=PARTIAL_RANK_BRIDGE)
         assert m.distance[i, j] == r.distance
         assert m.relative_distance[i, j] == r.relative_distance
         assert m.covered_fraction[i, j] == r.covered_fraction
@@ -76,6 +76,20 @@ def test_a_part_finds_its_whole(shapes):
     np.testing.assert_allclose(m.score, m.relative_distance / m.covered_fraction)
     # in its own whole the part covers about its own share of the area
     assert abs(m.covered_fraction[0, names.index("A")] - part.area / wholes["A"].area) < 0.3
+
+
+@pytest.mark.parametrize("bridge", [False, "choose"])
+def test_a_torus_part_fits_its_own_whole_exactly(shapes, bridge):
+    """The plane cut through the torus leaves chords across its central hole, a loose bound:
+    the bridged distances alone misfit the part's own whole (about 1e-3), and "choose" keeps
+    the exact map of the part's own distances."""
+    part, wholes = shapes
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SmallPartWarning)
+        r = match_partial(part, wholes["A"], n_samples=N, resolution=None, bridge=bridge)
+        b = match_partial(part, wholes["A"], n_samples=N, resolution=None, bridge=True)
+    assert r.relative_distance < 1e-4 < b.relative_distance
+    assert abs(r.covered_fraction - part.area / wholes["A"].area) < 0.3
 
 
 def test_the_score_is_the_relative_distance_per_share_covered():

@@ -7,8 +7,8 @@ Run:  .venv/bin/python benchmarks/studies/partial_recognition.py [--data DIR] [-
 For each TOSCA class, ``--per-class`` parts are cut (:func:`gromov.perturb.cut`, ``--kind``,
 keeping ``--keep`` of the area, seed = the part's number) from the class's lowest poses; each part
 is matched into every one of the 80 wholes except the pose it was cut from
-(:func:`gromov.match` with ``partial=True``: the geodesic metric, 3,000 working vertices, 100
-samples; every whole prepared once and shared with the ``--jobs`` forked workers). The wholes
+(:func:`gromov.partial.match_partial` as ``partial_matrix`` calls it: the geodesic metric, 3,000
+working vertices, 100 samples, ``bridge=PARTIAL_RANK_BRIDGE``; every whole prepared once and shared with the ``--jobs`` forked workers). The wholes
 are ranked by the partial match's relative distance (half the weighted RMS of the one-sided
 residuals over the whole's diameter); the score is the fraction of parts whose nearest whole is
 of their class (the aim: at least 95%), with the rank of the nearest
@@ -17,7 +17,8 @@ same fraction ranked by the relative distance ÷ the covered fraction (``gromov 
 --partial``'s score), ``nearest_of_own_class_by_score``. ``--rescore JSON`` adds that to a
 results file made before, from its rows, without matching again. ``--set KIND KEEP JSON``,
 repeated, runs several sets of parts against the wholes prepared once (instead of ``--kind``,
-``--keep``, ``--json``); ``--bridge`` sets ``gromov.partial.PARTIAL_BRIDGE`` for the run.
+``--keep``, ``--json``); ``--bridge`` the parts' ``bridge`` (default
+``gromov.partial.PARTIAL_RANK_BRIDGE``, what ``partial_matrix`` ranks with).
 """
 
 from __future__ import annotations
@@ -42,13 +43,14 @@ from _common import write_results  # noqa: E402
 HERE = Path(__file__).resolve().parent
 _WHOLES: list = []
 _PART = None
+_BRIDGE = False   # as gromov.partial.PARTIAL_RANK_BRIDGE, read in main
 
 
 def _one(j: int) -> tuple[float, float]:
     """In a worker: the part matched into whole ``j``: ``(relative distance, covered fraction)``."""
-    from gromov import match
+    from gromov.partial import match_partial
 
-    r = match(_PART, _WHOLES[j], partial=True)
+    r = match_partial(_PART, _WHOLES[j], bridge=_BRIDGE)   # as match(..., partial=True), bridge given
     return float(r.relative_distance), float(r.covered_fraction)
 
 
@@ -77,7 +79,8 @@ def main(argv=None) -> None:
     ap.add_argument("--set", nargs=3, action="append", metavar=("KIND", "KEEP", "JSON"), dest="sets",
                     help="a set of parts (repeatable), instead of --kind, --keep and --json")
     ap.add_argument("--bridge", choices=("0", "1", "choose"), default=None,
-                    help="gromov.partial.PARTIAL_BRIDGE for this run (default: the package's)")
+                    help="match_partial's bridge for this run (default: gromov.partial.PARTIAL_RANK_BRIDGE, "
+                         "what partial_matrix ranks with)")
     ap.add_argument("--rescore", default=None, metavar="JSON", help="add the score's ranking to this file and stop")
     args = ap.parse_args(argv)
     if args.rescore:
@@ -97,8 +100,9 @@ def main(argv=None) -> None:
     from gromov.errors import GromovWarning
     from gromov.experiments import datasets
 
-    if args.bridge is not None:
-        gromov.partial.PARTIAL_BRIDGE = {"0": False, "1": True}.get(args.bridge, args.bridge)
+    global _BRIDGE
+    _BRIDGE = gromov.partial.PARTIAL_RANK_BRIDGE if args.bridge is None else \
+        {"0": False, "1": True}.get(args.bridge, args.bridge)
     sets = [(k, float(v), j) for k, v, j in args.sets] if args.sets else [(args.kind, args.keep, args.json)]
     for kind, _, _ in sets:
         if kind not in ("plane", "holes"):
@@ -154,7 +158,7 @@ def run_set(tosca, names, kind: str, keep: float, out: str, args, argv, t_prepar
     res = {"command": "python benchmarks/studies/partial_recognition.py " + shlex.join(
                argv if argv is not None else sys.argv[1:]),
            "kind": kind, "keep": keep, "per_class": args.per_class, "wholes": len(names),
-           "metric": "geodesic", "bridge": gromov.partial.PARTIAL_BRIDGE, "nearest_of_own_class": acc,
+           "metric": "geodesic", "bridge": _BRIDGE, "nearest_of_own_class": acc,
            "nearest_of_own_class_by_score": own_class_first(rows, True), "parts": len(rows),
            "seconds_prepare": t_prepare, "seconds": t_prepare + time.perf_counter() - t0, "jobs": args.jobs,
            "load_average_end": os.getloadavg(), "rows": rows}

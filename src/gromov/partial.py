@@ -72,8 +72,8 @@ from .search import (SIGNATURE_STARTS, SearchOptions, _candidates, _orient, _Sea
 from .shape_metric import ShapeMetric
 
 __all__ = ["BOUNDARY_WIDTH", "PARTIAL_CURVATURE", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START",
-           "BRIDGE_BOUNDARY", "PARTIAL_BRIDGE", "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix",
-           "boundary_distance", "bridged_distances", "interval_misfit", "covered_region", "curvature_costs", "in_whole_metric", "local_anchored_map",
+           "BRIDGE_BOUNDARY", "PARTIAL_BRIDGE", "PARTIAL_RANK_BRIDGE", "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix",
+           "boundary_distance", "bridged_distances", "interval_misfit", "interval_residual", "covered_region", "curvature_costs", "in_whole_metric", "local_anchored_map",
            "match_partial", "part_curvature", "partial_matrix", "partial_zoomout", "sample_weights"]
 
 logger = logging.getLogger(__name__)
@@ -122,6 +122,12 @@ BRIDGE_MODES = (False, True, "choose")
 #: map's and above ``BRIDGE_FLOOR`` x the whole's mean working edge length: misfits below what
 #: the working mesh resolves are a tie, which the part's own distances win.
 BRIDGE_FLOOR = 0.5
+#: :func:`partial_matrix` (``gromov pairwise --partial``, ``gromov search --partial``) ranks with
+#: this ``bridge``: the part's own distances. The distances of ``"choose"`` (how far a map
+#: leaves the interval) rank parts with holes worse against the 80 TOSCA wholes (6 of 9 parts
+#: nearest a whole of their class, against 8 of 9; docs/design/partial.md, "The partial
+#: matrix"), and it searches a part with a boundary twice.
+PARTIAL_RANK_BRIDGE = False
 #: The dense map places each vertex by its distances to this many nearest samples
 #: (:func:`gromov.dense.local_anchored_map`).
 N_LOCAL = 16
@@ -254,10 +260,21 @@ def interval_misfit(sy: ShapeMetric, img: SurfacePoints, low: np.ndarray, high: 
     the part's own distances): the weighted RMS of
     :math:`\max(0, d_-(p_i, p_j) - d_Y(y_i, y_j)) + \max(0, d_Y(y_i, y_j) - d(p_i, p_j))`,
     weights ``W``. 0 for any map that keeps every distance within its bounds."""
-    dy = sy.surface.between(img, np.zeros(0, dtype=np.int64))
-    dy = 0.5 * (dy + dy.T)
-    r = np.maximum(low - dy, 0.0) + np.maximum(dy - high, 0.0)
+    r = interval_residual(_between(sy, img), low, high)
     return float(np.sqrt(np.sum(W * r**2) / W.sum()))
+
+
+def interval_residual(dy: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """How far each of the distances ``dy`` lies outside ``[low, high]``, signed as a residual
+    ``d_X - d_Y`` (positive where ``dy`` is below ``low``); 0 inside. With ``low = high`` the
+    plain residual ``high - dy``."""
+    return np.where(dy < low, low - dy, np.where(dy > high, high - dy, 0.0))
+
+
+def _between(sy: ShapeMetric, img: SurfacePoints) -> np.ndarray:
+    """The whole's distances between the points ``img``, symmetrised."""
+    dy = sy.surface.between(img, np.zeros(0, dtype=np.int64))
+    return 0.5 * (dy + dy.T)
 
 
 def _bridged_rows(sx: ShapeMetric, P0: np.ndarray, n_samples: int, seed: int) -> np.ndarray:
@@ -433,7 +450,9 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     -------
     MatchResult
         ``x_to_y_*`` and the dense ``x_to_y_dense_*``: the part's samples and vertices on the
-        whole; ``distance`` half the weighted RMS of the one-sided residuals;
+        whole; ``distance`` half the weighted RMS of the one-sided residuals (with
+        ``bridge="choose"`` and a part with a boundary, of how far the whole's distances leave
+        the interval between the bridged bound and the part's own, :func:`interval_residual`);
         ``y_covered``, ``covered_fraction``: the region of Y the part covers. Y's samples
         (``y_samples``) get images only inside that region (elsewhere face -1, vertex -1).
     """
@@ -487,19 +506,17 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         n_interior = int(np.sum(wp >= 0.5)) if interior_only else len(P)
         fits = [_search_and_refine(sx, sy, P, dx, W, search, n_refine, n_interior, curvature=curvature)
                 for dx in targets]
-    k = 0
+    k, low, high = 0, targets[0], targets[0]
     if len(fits) > 1:   # "choose": the map whose distances on Y leave the interval least
-        low = 2.0 * rows[:, P] - own
-        misfit = [interval_misfit(sy, f[0], low, own, W) for f in fits]
+        low, high = 2.0 * rows[:, P] - own, own
+        misfit = [interval_misfit(sy, f[0], low, high, W) for f in fits]
         floor = BRIDGE_FLOOR * sy.mesh.mean_edge_length
         k = int(max(misfit[1], floor) < max(misfit[0], floor))
         logger.debug("partial: interval misfit own %.4g, bridged %.4g (floor %.3g)", *misfit, floor)
     img, n_iter, converged, history, orientation = fits[k]
-    dx_pp = targets[k]
-    bridged = bridged and dx_pp is not own
-    dy = sy.surface.between(img, np.zeros(0, dtype=np.int64))
-    dy = 0.5 * (dy + dy.T)
-    residual = dx_pp - dy
+    bridged = bridged and targets[k] is not own
+    # the residuals: outside the interval with "choose", else against the distances matched
+    residual = interval_residual(_between(sy, img), low, high)
     np.fill_diagonal(residual, 0.0)
     off = ~np.eye(len(P), dtype=bool)
     dis = float(np.sqrt(np.sum(W * residual**2) / W.sum()))
@@ -656,7 +673,8 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
     progress : bool, default False
         A progress bar (tqdm) on stderr.
     **match_options
-        Passed to :func:`match_partial` (``search``, ``boundary``...; not ``dense``).
+        Passed to :func:`match_partial` (``search``, ``boundary``...; not ``dense``);
+        ``bridge`` defaults to :data:`PARTIAL_RANK_BRIDGE` here.
 
     Returns
     -------
@@ -672,6 +690,7 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
     t0 = time.perf_counter()
     if "dense" in match_options:
         raise ValueError("partial_matrix keeps no maps: dense is not taken")
+    match_options = {"bridge": PARTIAL_RANK_BRIDGE, **match_options}
     same = wholes is None
     parts = list(parts)
     wholes = parts if same else list(wholes)
