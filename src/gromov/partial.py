@@ -120,7 +120,8 @@ BRIDGE_BOUNDARY = 600
 BRIDGE_MODES = (False, True, "choose")
 #: ``"choose"`` keeps the bridged map only when its interval misfit is below the part's own
 #: map's and above ``BRIDGE_FLOOR`` x the whole's mean working edge length: misfits below what
-#: the working mesh resolves are a tie, which the part's own distances win.
+#: the working mesh resolves are a tie, which the part's own distances win. A part whose
+#: intervals are all narrower than the same floor (a mesh's few tiny holes) is searched once.
 BRIDGE_FLOOR = 0.5
 #: :func:`partial_matrix` (``gromov pairwise --partial``, ``gromov search --partial``) ranks with
 #: this ``bridge``: the part's own distances. The distances of ``"choose"`` (how far a map
@@ -501,16 +502,22 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     if not W.sum() > 0:
         raise MetricError("every sample of X lies on its boundary: nothing to weigh (boundary=0 weighs "
                           "all samples alike)")
+    floor = BRIDGE_FLOOR * sy.mesh.mean_edge_length
+    if bridged and mode == "choose":
+        # intervals all narrower than the mesh resolves (a mesh's few tiny holes) are none
+        width = float(np.max(np.where(W > 0, 2.0 * (own - rows[:, P]), 0.0)))
+        logger.debug("partial: interval width %.4g (floor %.3g)", width, floor)
+        bridged = width >= floor
     targets = ([own] if not bridged or mode == "choose" else []) + ([rows[:, P]] if bridged else [])
     with one_blas_thread():
         n_interior = int(np.sum(wp >= 0.5)) if interior_only else len(P)
-        fits = [_search_and_refine(sx, sy, P, dx, W, search, n_refine, n_interior, curvature=curvature)
+        hx = part_curvature(sx, sy)[P] if curvature > 0 else None   # once for both searches
+        fits = [_search_and_refine(sx, sy, P, dx, W, search, n_refine, n_interior, curvature=curvature, hx=hx)
                 for dx in targets]
     k, low, high = 0, targets[0], targets[0]
     if len(fits) > 1:   # "choose": the map whose distances on Y leave the interval least
         low, high = 2.0 * rows[:, P] - own, own
         misfit = [interval_misfit(sy, f[0], low, high, W) for f in fits]
-        floor = BRIDGE_FLOOR * sy.mesh.mean_edge_length
         k = int(max(misfit[1], floor) < max(misfit[0], floor))
         logger.debug("partial: interval misfit own %.4g, bridged %.4g (floor %.3g)", *misfit, floor)
     img, n_iter, converged, history, orientation = fits[k]
@@ -778,7 +785,7 @@ def curvature_costs(sx: ShapeMetric, sy: ShapeMetric, P: np.ndarray, weight: flo
 
 
 def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int, n_interior: int,
-                       turn: bool = True, more_starts: bool = True, curvature: float = 0.0):
+                       turn: bool = True, more_starts: bool = True, curvature: float = 0.0, hx=None):
     """The initial search in one direction, then one-sided GMDS from its ``n_refine`` best
     starts: the lowest final objective (the weighted stress plus, with ``curvature`` > 0, each
     sample's curvature cost (:func:`curvature_costs`) times its total weight; the coarse
@@ -786,10 +793,13 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
     most 1/2), GMDS also from the best orientation-preserving starts and from the mirrored map
     composed with Y's reflection (:meth:`ShapeMetric.symmetry`), and a direct map within
     ``ORIENTATION_TOL`` (``FLIP_TOL`` for the composition) of its distortion replaces it.
-    Returns ``(images, n_iter, converged, history, orientation agreement)``."""
+    ``hx``: the part's smoothed curvature at ``P``, if computed. Returns ``(images, n_iter,
+    converged, history, orientation agreement)``."""
     from .orientation import orientation_agreements
 
-    hx = part_curvature(sx, sy)[P] if curvature > 0 else None   # once: the half-turn rule reads it too
+    if curvature > 0 and hx is None:   # once: the half-turn rule reads it too
+        hx = part_curvature(sx, sy)[P]
+    hx = hx if curvature > 0 else None
     unary = curvature_costs(sx, sy, P, curvature, hx) if curvature > 0 else None
     fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior, unary)
     DY = sy.distances
