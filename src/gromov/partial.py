@@ -113,11 +113,6 @@ PARTIAL_BRIDGE = "choose"
 #: chords (every k-th of each loop beyond it): its cost grows as their number cubed (under a
 #: second for 600 beside 3,200 working vertices).
 BRIDGE_BOUNDARY = 600
-#: The values of ``match_partial(..., bridge=...)`` and :data:`PARTIAL_BRIDGE`: the part's own
-#: distances (False), the bridged ones (True), or both, each searched and refined, and the map
-#: whose distances on the whole leave the interval between the bound and the part's own
-#: distances least kept (``"choose"``, :func:`interval_misfit`).
-BRIDGE_MODES = (False, True, "choose")
 #: ``"choose"`` keeps the bridged map only when its interval misfit is below the part's own
 #: map's and above ``BRIDGE_FLOOR`` x the whole's mean working edge length: misfits below what
 #: the working mesh resolves are a tie, which the part's own distances win. A part whose
@@ -490,7 +485,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     P, wp = P0[order], wp0[order]
     Q = sy.samples(n_samples, seed)
     mode = PARTIAL_BRIDGE if bridge is None else bridge
-    if not (mode in BRIDGE_MODES[2:] if isinstance(mode, str) else isinstance(mode, (bool, np.bool_))):
+    if not (mode == "choose" if isinstance(mode, str) else isinstance(mode, (bool, np.bool_))):
         raise ValueError(f"bridge must be True, False or 'choose', got {mode!r}")
     mode = mode if isinstance(mode, str) else bool(mode)
     # a closed part has no hole to bridge; the diffusion metric is not a path length
@@ -503,9 +498,10 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         raise MetricError("every sample of X lies on its boundary: nothing to weigh (boundary=0 weighs "
                           "all samples alike)")
     floor = BRIDGE_FLOOR * sy.mesh.mean_edge_length
+    low = 2.0 * rows[:, P] - own if bridged else own   # the interval [low, own] of the whole's distances
     if bridged and mode == "choose":
         # intervals all narrower than the mesh resolves (a mesh's few tiny holes) are none
-        width = float(np.max(np.where(W > 0, 2.0 * (own - rows[:, P]), 0.0)))
+        width = float(np.max(np.where(W > 0, own - low, 0.0)))
         logger.debug("partial: interval width %.4g (floor %.3g)", width, floor)
         bridged = width >= floor
     targets = ([own] if not bridged or mode == "choose" else []) + ([rows[:, P]] if bridged else [])
@@ -514,12 +510,14 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         hx = part_curvature(sx, sy)[P] if curvature > 0 else None   # once for both searches
         fits = [_search_and_refine(sx, sy, P, dx, W, search, n_refine, n_interior, curvature=curvature, hx=hx)
                 for dx in targets]
-    k, low, high = 0, targets[0], targets[0]
+    k, high = 0, targets[0]
     if len(fits) > 1:   # "choose": the map whose distances on Y leave the interval least
-        low, high = 2.0 * rows[:, P] - own, own
+        high = own
         misfit = [interval_misfit(sy, f[0], low, high, W) for f in fits]
         k = int(max(misfit[1], floor) < max(misfit[0], floor))
         logger.debug("partial: interval misfit own %.4g, bridged %.4g (floor %.3g)", *misfit, floor)
+    else:
+        low = high
     img, n_iter, converged, history, orientation = fits[k]
     bridged = bridged and targets[k] is not own
     # the residuals: outside the interval with "choose", else against the distances matched
@@ -797,9 +795,8 @@ def _search_and_refine(sx, sy, P, dx_pp, W, search: SearchOptions, n_refine: int
     converged, history, orientation agreement)``."""
     from .orientation import orientation_agreements
 
-    if curvature > 0 and hx is None:   # once: the half-turn rule reads it too
-        hx = part_curvature(sx, sy)[P]
-    hx = hx if curvature > 0 else None
+    # once: the half-turn rule reads it too
+    hx = (part_curvature(sx, sy)[P] if hx is None else hx) if curvature > 0 else None
     unary = curvature_costs(sx, sy, P, curvature, hx) if curvature > 0 else None
     fwd, n_in, complete = _search(sx, sy, P, dx_pp, search, n_interior, unary)
     DY = sy.distances
