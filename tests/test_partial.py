@@ -12,7 +12,7 @@ import pytest
 
 import gromov
 from gromov.match_result import MatchResult
-from gromov.partial import (boundary_distance, bridged_distances, covered_region, match_partial, partial_zoomout,
+from gromov.partial import (boundary_distance, whole_shape, bridged_distances, covered_region, match_partial, partial_zoomout,
                             sample_weights)
 from gromov.perturb import cut
 from gromov.shape_metric import ShapeMetric
@@ -366,3 +366,22 @@ def test_cli_partial(tmp_path, capsys):
     argv[argv.index("placed")] = "zoomout"
     assert main(argv) == 2
     assert "--dense placed" in capsys.readouterr().err
+
+
+def test_a_whole_shape_is_matched_as_gromov_match_does():
+    """Nothing of a closed shape is missing, nor of one whose holes are narrower than the mesh
+    resolves: ``partial=True`` gives gromov.match's two-sided correspondence and distance. A
+    plane cut is a part."""
+    x = icosphere(2)
+    y = gromov.Mesh(x.vertices * [1.3, 1.0, 0.8], x.faces)
+    holed = gromov.Mesh(x.vertices, np.delete(x.faces, 7, axis=0))   # one triangle missing
+    plane = cut(x, 0.6, kind="plane", seed=0).mesh
+    assert whole_shape(x) and whole_shape(holed) and not whole_shape(plane)
+    for shape in (x, holed):
+        full = gromov.match(shape, y, "geodesic", n_samples=20, resolution=None)
+        part = gromov.match(shape, y, "geodesic", n_samples=20, resolution=None, partial=True)
+        assert part.partial and full.distance > 0
+        assert part.distance == full.distance and part.relative_distance == full.relative_distance
+        np.testing.assert_array_equal(part.x_to_y_vertex, full.x_to_y_vertex)
+        assert part.covered_fraction > 0.9
+    assert match_partial(plane, y, n_samples=20, resolution=None).pair_distortion.shape == (20, 20)

@@ -245,21 +245,7 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
     # the metrics, and farthest point samples of each shape
     sx, sy = _prepared_pair(X, Y, metric, resolution, metric_options, as_prepared)
     discrete = _check_pair(sx, sy, n_samples, radius)
-    P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
-    gm = None if discrete else SymmetricGMDS(sx.surface, sy.surface, P, Q, p=p, max_iter=search.max_iter,
-                                             tol=search.tol, radius=radius)
-    prefer = _prefers_direct(sx, sy, orientation, solver, init, discrete)
-    # the initial search, then GMDS, mirror images replaced by direct maps where nearly as good
-    # (BLAS on one thread: small products, and one summation order whatever the machine's threads)
-    with one_blas_thread():
-        starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
-        fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
-        if prefer:
-            candidates = _direct_candidates(sx, sy, P, Q, gm, starts, more=not fit.orientation > 0.5)
-            if not fit.orientation > 0.5:
-                fit = _prefer_direct(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
-            if fit.orientation > 0.5:
-                fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit)
+    P, Q, gm, fit = two_sided_fit(sx, sy, n_samples, seed, p, solver, init, search, radius, orientation, discrete)
     # the distortion of the final correspondence, and its images on the input meshes
     dx, dy = discrete_blocks(sx.distances, sy.distances, P, Q, fit.img_p, fit.img_q) if discrete else \
         gm.blocks(fit.img_p, fit.img_q)
@@ -284,6 +270,29 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
         n_iter=int(fit.n_iter), converged=bool(fit.converged), seconds=time.perf_counter() - t0,
         orientation=fit.orientation, distortion_trimmed=d_trim, relative_trimmed=0.5 * d_trim / diam,
         ranking_distance=ranking, pair_distortion=residual, history=np.asarray(fit.history), **extra)
+
+
+def two_sided_fit(sx: ShapeMetric, sy: ShapeMetric, n_samples: int, seed: int, p: float = 2.0,
+                  solver: str = "gmds", init: str = "greedy", search: SearchOptions = SearchOptions(),
+                  radius: float | None = None, orientation: str = "prefer", discrete: bool = False):
+    """``(P, Q, gm, fit)``: the samples of two prepared shapes, the GMDS solver (None for a
+    discrete map) and the two-sided correspondence :func:`match` reports: the initial search,
+    then GMDS, mirror images replaced by direct maps where nearly as good."""
+    P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
+    gm = None if discrete else SymmetricGMDS(sx.surface, sy.surface, P, Q, p=p, max_iter=search.max_iter,
+                                             tol=search.tol, radius=radius)
+    prefer = _prefers_direct(sx, sy, orientation, solver, init, discrete)
+    # (BLAS on one thread: small products, and one summation order whatever the machine's threads)
+    with one_blas_thread():
+        starts, img_p0, img_q0 = _initial_images(sx, sy, P, Q, gm, solver, init, search, discrete)
+        fit = _refine(sx, sy, P, Q, gm, img_p0, img_q0, solver, discrete)
+        if prefer:
+            candidates = _direct_candidates(sx, sy, P, Q, gm, starts, more=not fit.orientation > 0.5)
+            if not fit.orientation > 0.5:
+                fit = _prefer_direct(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
+            if fit.orientation > 0.5:
+                fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit)
+    return P, Q, gm, fit
 
 
 def _gh_interval(sx, sy, P, Q, fit: _Fit, discrete: bool) -> tuple[float, float]:
@@ -363,7 +372,7 @@ def _prefers_direct(sx, sy, orientation, solver, init, discrete) -> bool:
     prefer = orientation == "prefer" and solver == "gmds" and init == "greedy" and not discrete
     if prefer and not (sx.normals[1] and sy.normals[1]):
         warnings.warn("orientation='prefer' needs orientable working meshes (a Moebius-like "
-                      "piece cannot be given an outward side); ignored", GromovWarning, stacklevel=4)
+                      "piece cannot be given an outward side); ignored", GromovWarning, stacklevel=5)
         return False
     return prefer
 

@@ -152,6 +152,12 @@ PARTIAL_DENSE = (True, "input", "placed")
 #: (docs/design/partial.md).
 SMALL_PART = 0.25
 
+#: A boundary loop shorter than :math:`2\pi` times this many mean edge lengths is a hole the
+#: mesh does not resolve (:func:`whole_shape`): about one edge across, as far as the covered
+#: region reaches around each image (``COVER_RADIUS``). TOSCA's whole meshes have such holes
+#: (1-4.4 edges round at 4,000 vertices); a plane cut or a removed patch is many edges round.
+HOLE_RADIUS = 1.0
+
 
 def _heat(s: ShapeMetric):
     """The heat-kernel solver of ``s`` (looking through a hole-filling wrapper), or None."""
@@ -461,6 +467,10 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     if dense is not False and dense is not None and not any(dense is d or dense == d for d in PARTIAL_DENSE):
         raise ValueError(f"dense must be True, False, 'input' or 'placed' for a partial match (its dense map "
                          f"is refined on the input meshes), got {dense!r}")
+    mode = PARTIAL_BRIDGE if bridge is None else bridge
+    if not (mode == "choose" if isinstance(mode, str) else isinstance(mode, (bool, np.bool_))):
+        raise ValueError(f"bridge must be True, False or 'choose', got {mode!r}")
+    mode = mode if isinstance(mode, str) else bool(mode)
     options = correspondence_options(metric, metric_options)
     sy = _prepare(Y, metric, resolution, options, "Y")
     sx = _prepare(X, metric, resolution, options, "X")
@@ -476,6 +486,8 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
                       "distance)", SmallPartWarning, stacklevel=2)
     if same_time:
         sx = in_whole_metric(sx, sy)
+    if whole_shape(sx.mesh):   # nothing is missing: the two-sided match of gromov.match
+        return _as_whole(sx, sy, n_samples, seed, search, dense, n_local, metric, t0)
     # samples of the part, the interior ones first (the coarse stages place the first ones)
     P0 = sx.samples(n_samples, seed)
     width = float(boundary) * np.sqrt(sy.mesh.area)
@@ -484,10 +496,6 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     order = np.argsort(-np.minimum(wp0, 1.0), kind="stable")
     P, wp = P0[order], wp0[order]
     Q = sy.samples(n_samples, seed)
-    mode = PARTIAL_BRIDGE if bridge is None else bridge
-    if not (mode == "choose" if isinstance(mode, str) else isinstance(mode, (bool, np.bool_))):
-        raise ValueError(f"bridge must be True, False or 'choose', got {mode!r}")
-    mode = mode if isinstance(mode, str) else bool(mode)
     # a closed part has no hole to bridge; the diffusion metric is not a path length
     bridged = mode is not False and sx.metric == "geodesic" and len(sx.mesh.boundary_loops) > 0
     rows = _bridged_rows(sx, P0, n_samples, seed)[order] if bridged else None
@@ -526,9 +534,19 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     off = ~np.eye(len(P), dtype=bool)
     dis = float(np.sqrt(np.sum(W * residual**2) / W.sum()))
     r = residual[off]
+    T = _placed(sx, sy, P, img, wp, n_local, rows.T if bridged else None)
+    return _result(sx, sy, P, Q, img, wp, T, None, residual, dis, r, dense, metric, t0, n_iter=int(n_iter),
+                   converged=bool(converged), history=np.asarray(history), orientation=orientation,
+                   diameter=sy.diameter)
+
+
+def _result(sx, sy, P, Q, img, wp, T, q_images, residual, dis, r, dense, metric, t0, *, diameter,
+            **fit) -> MatchResult:
+    """The partial :class:`MatchResult` of the part's sample images ``img`` and the placed map
+    ``T``: the covered region, the dense maps, Y's samples' images inside the region
+    (``q_images`` on X's working mesh, or else the part's vertex whose image is nearest)."""
     xy_face, xy_bary, xy_vertex = sy.locate(img)
     # the dense map (working vertices of X -> working vertices of Y), the covered region
-    T = _placed(sx, sy, P, img, wp, n_local, rows.T if bridged else None)
     h = sy.mesh.mean_edge_length
     covered_w = covered_region(sy.mesh, T, COVER_RADIUS * h, COVER_CLOSE * h)
     covered = covered_w[sy.working.source_nearest]   # each input vertex as its nearest working vertex
@@ -552,18 +570,17 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     areas = sy.input.vertex_areas
     fraction = float(areas[covered].sum() / areas.sum())
     y_covered = sy.input.per_file_vertex(covered, fill=False)
-    # Y's samples inside the region: the part's vertex whose image is nearest
-    yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w)
-    diam = sy.diameter
+    # Y's samples inside the region
+    yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w[Q], q_images)
+    diam = diameter
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
         distortion_l2=dis, distortion_linf=norm_value(r, np.inf), norm="l2", metric=metric, solver="gmds",
-        n_samples=int(n_samples), x_samples=sx.working.to_input_ids(P), x_to_y_face=xy_face,
+        n_samples=len(P), x_samples=sx.working.to_input_ids(P), x_to_y_face=xy_face,
         x_to_y_bary=xy_bary, x_to_y_vertex=xy_vertex, y_samples=sy.working.to_input_ids(Q),
-        y_to_x_face=yx_face, y_to_x_bary=yx_bary, y_to_x_vertex=yx_vertex, n_iter=int(n_iter),
-        converged=bool(converged), seconds=time.perf_counter() - t0, pair_distortion=residual,
-        history=np.asarray(history), orientation=orientation, partial=True, y_covered=y_covered,
-        covered_fraction=fraction, x_weight=wp, **extra)
+        y_to_x_face=yx_face, y_to_x_bary=yx_bary, y_to_x_vertex=yx_vertex,
+        seconds=time.perf_counter() - t0, pair_distortion=residual, partial=True, y_covered=y_covered,
+        covered_fraction=fraction, x_weight=wp, **fit, **extra)
 
 
 def area_ratio(sx: ShapeMetric, sy: ShapeMetric) -> float:
@@ -967,14 +984,47 @@ def _covered_back(sx, sy, T, covered_w, covered):
     return DenseMap(*(sy.input.per_file_vertex(a, fill=f) for a, f in ((face, -1), (bary, np.nan), (vertex, -1))))
 
 
-def _back_images(sx, sy, Q, T, covered_w):
-    """``(face, bary, vertex)`` on X's input of Y's samples inside the covered region: the
-    working vertex of X whose image is nearest (Y's metric); -1 / NaN outside it."""
+def _back_images(sx, sy, Q, T, inside, q_images: SurfacePoints | None = None):
+    """``(face, bary, vertex)`` on X's input of Y's samples ``inside`` the covered region:
+    ``q_images`` (on X's working mesh) where given, else the working vertex of X whose image
+    is nearest (Y's metric); -1 / NaN outside it."""
     n = len(Q)
     face, bary, vertex = np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan), np.full(n, -1, dtype=np.int64)
-    inside = covered_w[Q]
     if inside.any():
-        near = np.argmin(sy.distances[np.ix_(Q[inside], T)], axis=1)
-        f, bb, v = sx.locate(SurfacePoints.at_vertices(sx.mesh, near))
+        if q_images is None:
+            near = np.argmin(sy.distances[np.ix_(Q[inside], T)], axis=1)
+            f, bb, v = sx.locate(SurfacePoints.at_vertices(sx.mesh, near))
+        else:
+            f, bb, v = sx.locate(SurfacePoints(q_images.face[inside], q_images.bary[inside]))
         face[inside], bary[inside], vertex[inside] = f, bb, v
     return face, bary, vertex
+
+
+def whole_shape(mesh: Mesh) -> bool:
+    r"""Whether a "part" is a whole shape: closed, or with only holes the mesh does not resolve
+    (every boundary loop shorter than :math:`2\pi` ``HOLE_RADIUS`` mean edge lengths, a hole at
+    most about one edge across, as the covered region's own radius). A closed surface is no
+    proper part of a connected one, so nothing of it is missing."""
+    loops = mesh.boundary_loops
+    if not len(loops):
+        return True
+    V, limit = mesh.vertices, 2.0 * np.pi * HOLE_RADIUS * mesh.mean_edge_length
+    return all(np.linalg.norm(V[loop] - V[np.roll(loop, 1)], axis=1).sum() < limit for loop in loops)
+
+
+def _as_whole(sx, sy, n_samples, seed, search, dense, n_local, metric, t0) -> MatchResult:
+    """A whole shape matched with ``partial=True``: the correspondence and distance of
+    :func:`gromov.match` (two-sided, :func:`gromov.gh.two_sided_fit`), with the partial
+    result's covered region and dense map."""
+    from .gh import two_sided_fit
+
+    P, Q, gm, fit = two_sided_fit(sx, sy, n_samples, seed, search=search)
+    dx, dy = gm.blocks(fit.img_p, fit.img_q)
+    residual = dx - dy
+    np.fill_diagonal(residual, 0.0)
+    r = residual[~np.eye(len(dx), dtype=bool)]
+    wp = np.ones(len(P))
+    T = _placed(sx, sy, P, fit.img_p, wp, n_local)
+    return _result(sx, sy, P, Q, fit.img_p, wp, T, fit.img_q, residual, norm_value(r, 2.0), r, dense, metric,
+                   t0, n_iter=int(fit.n_iter), converged=bool(fit.converged), history=np.asarray(fit.history),
+                   orientation=fit.orientation, diameter=max(sx.diameter, sy.diameter))
