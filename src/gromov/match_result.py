@@ -74,7 +74,8 @@ class MatchResult:
     partial : bool
         Whether X was matched as a part of Y (``match(..., partial=True)``,
         :mod:`gromov.partial`): then ``distance`` is half the weighted RMS of the one-sided
-        residuals over X's samples (``pair_distortion`` is ``(M, M)``), and Y's samples outside
+        residuals over X's samples (``pair_distortion`` is ``(M, M)``; for an X with nothing
+        missing, :func:`gromov.partial.whole_shape`, the full match's), and Y's samples outside
         the covered region have no image (face and vertex -1).
     y_covered : ndarray (n_Y,) of bool or None
         With ``partial``: the region of Y the part covers, per file vertex of Y.

@@ -41,8 +41,10 @@ the whole's area is reported with the distance. With ``dense=True`` the part's m
 refined on the input meshes by ZoomOut with a rectangular functional map
 (:func:`partial_zoomout`; Rodolà, Cosmo, Bronstein, Torsello & Cremers, CGF 2017). A part below :data:`SMALL_PART` of the whole's
 area is matched all the same, with a :class:`~gromov.errors.SmallPartWarning`.
-:func:`partial_matrix` matches every part into every whole, for ranking. The measurements
-behind these choices are in docs/design/partial.md.
+:func:`partial_matrix` matches every part into every whole, for ranking. A "part" with
+nothing missing (closed, or with holes about one edge in radius at most: :func:`whole_shape`)
+is matched as a whole, by the two-sided correspondence and distance of :func:`gromov.match`.
+The measurements behind these choices are in docs/design/partial.md.
 """
 
 from __future__ import annotations
@@ -457,6 +459,9 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
         the interval between the bridged bound and the part's own, :func:`interval_residual`);
         ``y_covered``, ``covered_fraction``: the region of Y the part covers. Y's samples
         (``y_samples``) get images only inside that region (elsewhere face -1, vertex -1).
+        A whole shape X (:func:`whole_shape`) gets :func:`gromov.match`'s two-sided
+        correspondence, distance and ``(M+K, M+K)`` ``pair_distortion``; ``bridge``,
+        ``boundary``, ``n_refine``, ``interior_only`` and ``curvature`` do not apply to it.
     """
     t0 = time.perf_counter()
     search = SearchOptions() if search is None else search
