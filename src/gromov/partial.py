@@ -155,8 +155,8 @@ PARTIAL_DENSE = (True, "input", "placed")
 SMALL_PART = 0.25
 
 #: A boundary loop shorter than :math:`2\pi` times this many mean edge lengths is a hole the
-#: mesh does not resolve (:func:`whole_shape`): about one edge across, as far as the covered
-#: region reaches around each image (``COVER_RADIUS``). TOSCA's whole meshes have such holes
+#: mesh does not resolve (:func:`whole_shape`): at most about one edge in radius, as far as the
+#: covered region reaches around each image (``COVER_RADIUS``). TOSCA's whole meshes have such holes
 #: (1-4.4 edges round at 4,000 vertices); a plane cut or a removed patch is many edges round.
 HOLE_RADIUS = 1.0
 
@@ -1008,7 +1008,7 @@ def _back_images(sx, sy, Q, T, inside, q_images: SurfacePoints | None = None):
 def whole_shape(mesh: Mesh) -> bool:
     r"""Whether a "part" is a whole shape: closed, or with only holes the mesh does not resolve
     (every boundary loop shorter than :math:`2\pi` ``HOLE_RADIUS`` mean edge lengths, a hole at
-    most about one edge across, as the covered region's own radius). A closed surface is no
+    most about one edge in radius, the covered region's own reach around an image). A closed surface is no
     proper part of a connected one, so nothing of it is missing."""
     loops = mesh.boundary_loops
     if not len(loops):
