@@ -300,13 +300,17 @@ class SymmetricGMDS:
         Sample vertices on X and on Y (``M`` and ``K`` of them).
     p : float
         Norm exponent (2, a value >= 1, or ``inf``).
-    weights_x, weights_y : ndarray, optional
-        Pair weights for the (P, P) and (Q, Q) blocks; the cross blocks use the product of
-        the row weights. Default: all ones.
     max_iter : int, default 100
         Sweeps (each moves every point of both embeddings once) per IRLS round.
     tol : float, default 1e-6
         Stop when a sweep lowers the weighted distortion by less than ``tol`` relatively.
+    n_newton : int, default 3
+        Newton steps per point and sweep.
+    irls_rounds : int, default 6
+        Reweighted rounds for a norm other than L2.
+    radius : float, optional
+        Only the pairs of samples at most this far apart (on their own shape) are weighed in the
+        (P, P) and (Q, Q) blocks; the cross blocks weigh every pair.
     """
 
     def __init__(self, X: SurfaceDistance, Y: SurfaceDistance, P, Q, *, p: float = 2.0,
