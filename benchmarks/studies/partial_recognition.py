@@ -14,7 +14,8 @@ residuals over the whole's diameter); the score is the fraction of parts whose n
 of their class (the aim: at least 95%), with the rank of the nearest
 whole of the right class and the covered fraction of the area, per part, in the JSON; and the
 same fraction ranked by the relative distance ÷ the covered fraction (``gromov pairwise
---partial``'s score), ``nearest_of_own_class_by_score``. ``--rescore JSON`` adds that to a
+--partial``'s score), ``nearest_of_own_class_by_score``; each whole's geodesic diameter and area
+(``wholes_info``) and each part's area, for other rankings. ``--rescore JSON`` adds that to a
 results file made before, from its rows, without matching again. ``--set KIND KEEP JSON``,
 repeated, runs several sets of parts against the wholes prepared once (instead of ``--kind``,
 ``--keep``, ``--json``); ``--bridge`` the parts' ``bridge`` (default
@@ -148,6 +149,7 @@ def run_set(tosca, names, kind: str, keep: float, out: str, args, argv, t_prepar
             ranked = [names[others[i]][0] for i in order]
             first_right = ranked.index(cls) + 1
             rows.append({"class": cls, "pose": pose, "part_area_share": float(p.mesh.area / _WHOLES[src].input.area),
+                         "part_area": float(p.mesh.area),
                          "nearest": f"{ranked[0]}{names[others[order[0]]][1]}", "correct": ranked[0] == cls,
                          "rank_of_own_class": first_right, "seconds": time.perf_counter() - t,
                          "distances": {f"{names[j][0]}{names[j][1]}": float(v) for j, v in zip(others, d)},
@@ -161,7 +163,10 @@ def run_set(tosca, names, kind: str, keep: float, out: str, args, argv, t_prepar
            "metric": "geodesic", "bridge": _BRIDGE, "nearest_of_own_class": acc,
            "nearest_of_own_class_by_score": own_class_first(rows, True), "parts": len(rows),
            "seconds_prepare": t_prepare, "seconds": t_prepare + time.perf_counter() - t0, "jobs": args.jobs,
-           "load_average_end": os.getloadavg(), "rows": rows}
+           "load_average_end": os.getloadavg(), "rows": rows,
+           # each whole's geodesic diameter and area, for rankings other than the relative distance
+           "wholes_info": {f"{c}{q}": {"diameter": float(w.diameter), "area": float(w.input.area)}
+                           for (c, q), w in zip(names, _WHOLES)}}
     write_results(out, res)
     print(f"{kind} {keep}: nearest whole of the part's class: {acc:.1%} of {len(rows)} parts, "
           f"{res['nearest_of_own_class_by_score']:.1%} by the score", flush=True)
