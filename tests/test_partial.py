@@ -12,8 +12,8 @@ import pytest
 
 import gromov
 from gromov.match_result import MatchResult
-from gromov.partial import (boundary_distance, whole_shape, bridged_distances, covered_region, match_partial, partial_zoomout,
-                            sample_weights)
+from gromov.partial import (boundary_distance, bridged_distances, covered_region, match_partial, partial_zoomout,
+                            sample_weights, whole_shape)
 from gromov.perturb import cut
 from gromov.shape_metric import ShapeMetric
 from gromov.shapes import grid, icosphere, torus

@@ -249,9 +249,7 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
     # the distortion of the final correspondence, and its images on the input meshes
     dx, dy = discrete_blocks(sx.distances, sy.distances, P, Q, fit.img_p, fit.img_q) if discrete else \
         gm.blocks(fit.img_p, fit.img_q)
-    residual = dx - dy
-    np.fill_diagonal(residual, 0.0)   # not a pair (an interpolated self-distance need not be 0)
-    r = residual[~np.eye(len(dx), dtype=bool)]
+    residual, r = pair_residuals(dx, dy)
     dis, diam, d_trim = norm_value(r, p), max(sx.diameter, sy.diameter), trimmed_rms(r)
     ranking = _ranking(sx, sy, P, Q, fit, dx, dy, diam, discrete, rank_tau_scale, rank_residual)
     locate = _images_at_points if discrete else lambda s, img: s.locate(img)
@@ -293,6 +291,14 @@ def two_sided_fit(sx: ShapeMetric, sy: ShapeMetric, n_samples: int, seed: int, p
             if fit.orientation > 0.5:
                 fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit)
     return P, Q, gm, fit
+
+
+def pair_residuals(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(D_X(C) - D_Y(C)`` with a zero diagonal, its off-diagonal entries``)``: the diagonal is
+    not a pair (an interpolated self-distance need not be 0)."""
+    residual = dx - dy
+    np.fill_diagonal(residual, 0.0)
+    return residual, residual[~np.eye(len(dx), dtype=bool)]
 
 
 def _gh_interval(sx, sy, P, Q, fit: _Fit, discrete: bool) -> tuple[float, float]:

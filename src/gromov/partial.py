@@ -74,9 +74,9 @@ from .search import (SIGNATURE_STARTS, SearchOptions, _candidates, _orient, _Sea
 from .shape_metric import ShapeMetric
 
 __all__ = ["BOUNDARY_WIDTH", "PARTIAL_CURVATURE", "PARTIAL_DENSE", "PARTIAL_K_END", "PARTIAL_K_START",
-           "BRIDGE_BOUNDARY", "PARTIAL_BRIDGE", "PARTIAL_RANK_BRIDGE", "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "PartialMatrix",
+           "BRIDGE_BOUNDARY", "PARTIAL_BRIDGE", "PARTIAL_RANK_BRIDGE", "PARTIAL_K_STEP", "PARTIAL_KY_MAX", "PARTIAL_METRIC", "PARTIAL_RINGS", "SMALL_PART", "HOLE_RADIUS", "PartialMatrix",
            "boundary_distance", "bridged_distances", "interval_misfit", "interval_residual", "covered_region", "curvature_costs", "in_whole_metric", "local_anchored_map",
-           "match_partial", "part_curvature", "partial_matrix", "partial_zoomout", "sample_weights"]
+           "match_partial", "part_curvature", "partial_matrix", "partial_zoomout", "sample_weights", "whole_shape"]
 
 logger = logging.getLogger(__name__)
 
@@ -1021,13 +1021,10 @@ def _as_whole(sx, sy, n_samples, seed, search, dense, n_local, metric, t0) -> Ma
     """A whole shape matched with ``partial=True``: the correspondence and distance of
     :func:`gromov.match` (two-sided, :func:`gromov.gh.two_sided_fit`), with the partial
     result's covered region and dense map."""
-    from .gh import two_sided_fit
+    from .gh import pair_residuals, two_sided_fit
 
     P, Q, gm, fit = two_sided_fit(sx, sy, n_samples, seed, search=search)
-    dx, dy = gm.blocks(fit.img_p, fit.img_q)
-    residual = dx - dy
-    np.fill_diagonal(residual, 0.0)
-    r = residual[~np.eye(len(dx), dtype=bool)]
+    residual, r = pair_residuals(*gm.blocks(fit.img_p, fit.img_q))
     wp = np.ones(len(P))
     T = _placed(sx, sy, P, fit.img_p, wp, n_local)
     return _result(sx, sy, P, Q, fit.img_p, wp, T, fit.img_q, residual, norm_value(r, 2.0), r, dense, metric,
