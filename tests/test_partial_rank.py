@@ -60,6 +60,7 @@ def test_matrix_is_match_partial_pair_by_pair(shapes, matrix):
         assert m.distance[i, j] == r.distance
         assert m.relative_distance[i, j] == r.relative_distance
         assert m.covered_fraction[i, j] == r.covered_fraction
+        assert m.ranking_distance[i, j] == r.ranking_distance
         assert m.area_ratio[i, j] == pytest.approx(x.area / y.area)
     # not symmetric: the part fits into its whole, the whole not into the part
     assert m.distance[0, 1] < 0.1 * m.distance[1, 0]
@@ -73,7 +74,9 @@ def test_a_part_finds_its_whole(shapes):
     order = [names[j] for j in np.argsort(m.distance[0])]
     assert set(order[:2]) == {"A", "A_moved"}
     assert names[m.nearest[0]] in ("A", "A_moved")
-    np.testing.assert_allclose(m.score, m.relative_distance / m.covered_fraction)
+    np.testing.assert_allclose(m.score, m.ranking_distance / m.covered_fraction)
+    # the ranked objective adds the curvature term (>= 0) to the same weighted residuals
+    assert np.all(m.ranking_distance >= m.relative_distance)
     # in its own whole the part covers about its own share of the area
     assert abs(m.covered_fraction[0, names.index("A")] - part.area / wholes["A"].area) < 0.3
 

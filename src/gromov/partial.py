@@ -537,12 +537,19 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     residual = interval_residual(_between(sy, img), low, high)
     np.fill_diagonal(residual, 0.0)
     off = ~np.eye(len(P), dtype=bool)
-    dis = float(np.sqrt(np.sum(W * residual**2) / W.sum()))
+    stress = float(np.sum(W * residual**2))
+    dis = float(np.sqrt(stress / W.sum()))
     r = residual[off]
+    # the objective the search minimised, in the distance's units: what parts are ranked by
+    bent = 0.0
+    if hx is not None:
+        costs = (curvature**2 * sy.mesh.area) * (hx - sy.curvature[img.vertex(sy.mesh.faces)]) ** 2
+        bent = float(np.sum(W.sum(axis=1) * costs))
+    ranking = 0.5 * np.sqrt((stress + bent) / W.sum()) / sy.diameter
     T = _placed(sx, sy, P, img, wp, n_local, rows.T if bridged else None)
     return _result(sx, sy, P, Q, img, wp, T, None, residual, dis, r, dense, metric, t0, n_iter=int(n_iter),
                    converged=bool(converged), history=np.asarray(history), orientation=orientation,
-                   diameter=sy.diameter)
+                   diameter=sy.diameter, ranking_distance=float(ranking))
 
 
 def _result(sx, sy, P, Q, img, wp, T, q_images, residual, dis, r, dense, metric, t0, *, diameter,
@@ -604,6 +611,10 @@ class PartialMatrix:
         Not symmetric. With ``same`` its diagonal is 0 (each shape is a part of itself).
     relative_distance : ndarray (n_parts, n_wholes)
         ``distance`` ÷ the whole's diameter.
+    ranking_distance : ndarray (n_parts, n_wholes)
+        ``match_partial(parts[i], wholes[j]).ranking_distance``: the objective the search
+        minimised (the distortion and the curvature term) in the same units, ÷ the whole's
+        diameter; what :attr:`score` divides.
     covered_fraction : ndarray (n_parts, n_wholes)
         The share of the whole's area the part covers (1 on the diagonal with ``same``).
     area_ratio : ndarray (n_parts, n_wholes)
@@ -629,15 +640,22 @@ class PartialMatrix:
     metric: str
     n_samples: int
     seconds: float
+    ranking_distance: np.ndarray | None = None   # None: the relative distance
+
+    def __post_init__(self):
+        if self.ranking_distance is None:
+            object.__setattr__(self, "ranking_distance", self.relative_distance)
 
     @cached_property
     def score(self) -> np.ndarray:
-        r"""``(n_parts, n_wholes)``: the ranked value, the relative distance per share of the
-        whole covered, :math:`D_{ij} / (\operatorname{diam}_j\, c_{ij})` (inf where nothing is
-        covered, NaN where not matched). A part matched into a shape it covers little of is not
-        taken for a good match by fitting a small region well (docs/design/partial.md)."""
+        r"""``(n_parts, n_wholes)``: the ranked value, the ranking distance per share of the
+        whole covered, :math:`R_{ij} / c_{ij}` (inf where nothing is covered, NaN where not
+        matched); :math:`R_{ij}` is half the root of the weighted squared residuals plus the
+        curvature term over the weights, ÷ the whole's diameter (:attr:`ranking_distance`).
+        A part matched into a shape it covers little of is not taken for a good match by
+        fitting a small region well (docs/design/partial.md)."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            s = self.relative_distance / self.covered_fraction
+            s = self.ranking_distance / self.covered_fraction
         s[(self.covered_fraction == 0) & np.isfinite(self.relative_distance)] = np.inf
         if self.same:
             np.fill_diagonal(s, 0.0)
@@ -737,9 +755,9 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
         names_p = names_w if same else names_p
     sp = [_prepare(s, metric, resolution, options, n) for s, n in zip(parts, names_p)]
     shape = (len(parts), len(wholes))
-    dist, rel, cover, ratio = (np.full(shape, np.nan) for _ in range(4))
+    dist, rel, rank, cover, ratio = (np.full(shape, np.nan) for _ in range(5))
     if same:
-        for a in (dist, rel):
+        for a in (dist, rel, rank):
             np.fill_diagonal(a, 0.0)
         for a in (cover, ratio):
             np.fill_diagonal(a, 1.0)
@@ -774,6 +792,7 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
                     else:
                         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
                 dist[i, j], rel[i, j], cover[i, j] = r.distance, r.relative_distance, r.covered_fraction
+                rank[i, j] = r.ranking_distance
                 logger.info("%s as a part of %s: %.6g (covers %.1f%%)", names_p[i], names_w[j], r.distance,
                             100 * r.covered_fraction)
                 bar.update(1)
@@ -789,7 +808,7 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
                       f"whole's area, where its placement is unreliable: {listed}{more}", SmallPartWarning,
                       stacklevel=2)
     return PartialMatrix(dist, rel, cover, ratio, same, names_p, names_w, metric, int(n_samples),
-                         time.perf_counter() - t0)
+                         time.perf_counter() - t0, rank)
 
 
 def curvature_costs(sx: ShapeMetric, sy: ShapeMetric, P: np.ndarray, weight: float,
@@ -1029,4 +1048,5 @@ def _as_whole(sx, sy, n_samples, seed, search, dense, n_local, metric, t0) -> Ma
     T = _placed(sx, sy, P, fit.img_p, wp, n_local)
     return _result(sx, sy, P, Q, fit.img_p, wp, T, fit.img_q, residual, norm_value(r, 2.0), r, dense, metric,
                    t0, n_iter=int(fit.n_iter), converged=bool(fit.converged), history=np.asarray(fit.history),
-                   orientation=fit.orientation, diameter=max(sx.diameter, sy.diameter))
+                   orientation=fit.orientation, diameter=max(sx.diameter, sy.diameter),
+                   ranking_distance=0.5 * norm_value(r, 2.0) / max(sx.diameter, sy.diameter))
