@@ -162,6 +162,26 @@ def test_curvature_term_places_a_part_the_distortion_alone_misplaces(data_dir):
     costs = curvature_costs(sx, sy, P, 1.0)
     rows = np.arange(len(P))
     assert np.median(costs[rows, true]) < 0.25 * np.median(costs[rows, found])
+    # without the term, parts are ranked by the distortion alone
+    assert alone.ranking_distance == pytest.approx(alone.relative_distance, rel=1e-12)
+
+
+def test_the_ranking_distance_is_the_objective_of_the_search(cat_part):
+    """``ranking_distance`` (what parts are ranked by) adds to the weighted squared residuals of
+    ``relative_distance`` each sample's curvature cost times its total weight:
+    R^2 - (D / diam)^2 = (1 / (2 diam))^2 sum_i (sum_j w_i w_j) cost_i(q_i) / sum_ij w_i w_j."""
+    from gromov.partial import PARTIAL_CURVATURE, curvature_costs
+
+    whole, part, _, _ = cat_part
+    sx, sy = ShapeMetric(part, "geodesic", resolution=None), ShapeMetric(whole, "geodesic", resolution=None)
+    r = match_partial(sx, sy)
+    W = np.outer(r.x_weight, r.x_weight)
+    np.fill_diagonal(W, 0.0)
+    P = sx.working.from_source(r.x_samples)   # numbered 0..n-1, the working meshes are the input
+    costs = curvature_costs(sx, sy, P, PARTIAL_CURVATURE)[np.arange(len(P)), r.x_to_y_vertex]
+    extra = (0.5 / sy.diameter) ** 2 * np.sum(W.sum(axis=1) * costs) / W.sum()
+    assert extra > 0
+    assert r.ranking_distance ** 2 - r.relative_distance ** 2 == pytest.approx(extra, rel=1e-9)
 
 
 def test_covered_region_is_the_kept_one(cat_part):

@@ -203,14 +203,14 @@ def test_cli_pairwise_partial_json(files, matrix, capsys, tmp_path):
             "--out", str(out)]
     assert main(argv) == 0
     got = json.loads(capsys.readouterr().out)
-    assert got["partial"] is True and got["metric"] == "geodesic" and got["ranked_by"] == "relative_distance/covered_fraction"
+    assert got["partial"] is True and got["metric"] == "geodesic" and got["ranked_by"] == "ranking_distance/covered_fraction"
     assert np.allclose(got["distance"], m.distance[keep])
     assert np.allclose(got["covered_fraction"], m.covered_fraction[keep])
     assert np.allclose(got["area_ratio"], m.area_ratio[keep]) and got["small_part"] == SMALL_PART
     assert got["nearest"][0] == files[1]   # the part's whole
     z = np.load(out)
     assert np.allclose(z["distance"], m.distance[keep]) and np.allclose(z["covered_fraction"], m.covered_fraction[keep])
-    assert list(z["files"]) == files and str(z["ranked_by"]) == "relative_distance/covered_fraction"
+    assert list(z["files"]) == files and str(z["ranked_by"]) == "ranking_distance/covered_fraction"
 
 
 def test_cli_pairwise_partial_text_and_csv(files, capsys, tmp_path):

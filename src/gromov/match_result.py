@@ -57,7 +57,12 @@ class MatchResult:
         diffusion metric, the same quantity for the same correspondence measured with the heat
         distance at ``rank_tau_scale`` times the diffusion time (diameters in that metric);
         with its ``rank_residual="log"``, of the log ratios of the distances instead of their
-        differences (:func:`~gromov.gh.ranking_value`).
+        differences (:func:`~gromov.gh.ranking_value`). From a partial match
+        (:func:`gromov.partial.match_partial`), the objective its search minimised in the
+        distance's units, ÷ the whole's diameter: half the root of the weighted squared
+        residuals plus the curvature term over the weights (``relative_distance`` with
+        ``curvature=0`` or a whole X); :attr:`gromov.partial.PartialMatrix.score` divides it by
+        the covered fraction.
     pair_distortion : ndarray (M+K, M+K)
         ``D_X(C) - D_Y(C)`` of the final two-sided correspondence C = (P x Q') u (P' x Q): rows
         and columns are first X's M samples (on Y: their images), then Y's K samples (on X:

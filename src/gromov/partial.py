@@ -693,10 +693,11 @@ def partial_matrix(parts, wholes=None, metric: str = PARTIAL_METRIC, *, n_sample
     of the one-sided residuals of part ``i`` in whole ``j``. It is not symmetric: a part fits
     into its whole, not the whole into the part. Each shape is prepared once (its metric in
     the correspondence's options) and every ordered pair is matched, one after the other; no
-    pair is pruned. Each part's nearest whole is the one of lowest relative distance per
-    share of the whole covered, :math:`\arg\min_j D_{ij} / (\operatorname{diam}_j\, c_{ij})`
-    (:attr:`PartialMatrix.score`, :attr:`PartialMatrix.nearest`): a part fits a region of many
-    shapes well, and the share it covers tells its own whole from the others. Read
+    pair is pruned. Each part's nearest whole is the one of lowest ranking distance per
+    share of the whole covered, :math:`\arg\min_j R_{ij} / c_{ij}` (:attr:`PartialMatrix.score`,
+    :attr:`PartialMatrix.nearest`; :math:`R_{ij}` the objective of the search, distortion and
+    curvature term, ÷ the whole's diameter): a part fits a region of many shapes well, and the
+    share it covers tells its own whole from the others. Read
     :attr:`PartialMatrix.area_ratio` beside it -- a small part fits almost anywhere. The pairs whose part holds less than :data:`SMALL_PART` of the whole's area are
     named in one :class:`~gromov.errors.SmallPartWarning` (not one per pair).
 

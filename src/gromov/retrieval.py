@@ -481,13 +481,15 @@ class NearestResult:
         """The JSON of ``gromov search --json``: ``neighbors`` (``file``, ``distance``, nearest
         first), ``full_matches``, ``skipped``, ``exact``, ``ranked_by`` and ``known_pairs``;
         with ``partial`` each neighbour's ``partial_distance``, ``relative_distance``,
-        ``covered_fraction`` and ``area_ratio`` too (its ``distance`` is the ranked score)."""
+        ``ranking_distance``, ``covered_fraction`` and ``area_ratio`` too (its ``distance`` is
+        the ranked score)."""
         neighbors = [{"file": n.name, "distance": n.distance} for n in self.neighbors]
         if self.partial is not None:
             m = self.partial
             for x, n in zip(neighbors, self.neighbors):
                 x.update(partial_distance=float(m.distance[0, n.index]),
                          relative_distance=float(m.relative_distance[0, n.index]),
+                         ranking_distance=float(m.ranking_distance[0, n.index]),
                          covered_fraction=float(m.covered_fraction[0, n.index]),
                          area_ratio=float(m.area_ratio[0, n.index]))
         return {"neighbors": neighbors, "full_matches": self.full_matches, "skipped": self.skipped,
@@ -657,8 +659,8 @@ def nearest_wholes(query, shapes, k: int = 5, metric: str | None = None, *, n_sa
     """The ``k`` shapes that ``query`` fits into best as a part (``gromov search --partial``).
 
     The query is matched as the part into every shape of the collection
-    (:func:`gromov.partial.partial_matrix`, one row) and the shapes are ranked by the relative
-    partial distance per share of the shape covered (:attr:`gromov.partial.PartialMatrix.score`,
+    (:func:`gromov.partial.partial_matrix`, one row) and the shapes are ranked by the partial
+    ranking distance per share of the shape covered (:attr:`gromov.partial.PartialMatrix.score`,
     each neighbour's ``distance``). Every shape is matched: the lower bounds and profile gaps of
     :func:`nearest` bound a two-sided distortion and prune nothing here. Read each neighbour's
     area ratio (``partial`` of the result) beside it: a small part fits almost anywhere.

@@ -658,8 +658,9 @@ def _pairwise_partial(args) -> int:
     nearest = m.nearest
     result = {"files": files, "skipped": unusable, "partial": True, "metric": args.metric, "metric_options": options,
               "n_samples": args.samples, "resolution": args.resolution, "seed": args.seed,
-              "ranked_by": "relative_distance/covered_fraction", "score": m.score.tolist(), "distance": m.distance.tolist(),
-              "relative_distance": m.relative_distance.tolist(), "covered_fraction": m.covered_fraction.tolist(),
+              "ranked_by": "ranking_distance/covered_fraction", "score": m.score.tolist(), "distance": m.distance.tolist(),
+              "relative_distance": m.relative_distance.tolist(), "ranking_distance": m.ranking_distance.tolist(),
+              "covered_fraction": m.covered_fraction.tolist(),
               "area_ratio": m.area_ratio.tolist(), "small_part": SMALL_PART,
               "nearest": [files[j] for j in nearest], "labels": labels, "seconds": seconds}
     if labels is not None:
@@ -673,10 +674,11 @@ def _pairwise_partial(args) -> int:
             _write_csv(out, files, m.distance, "partial_distance")
         else:
             atomic_savez_compressed(out, files=np.array(files), partial=True, distance=m.distance,
-                                    relative_distance=m.relative_distance, covered_fraction=m.covered_fraction,
+                                    relative_distance=m.relative_distance, ranking_distance=m.ranking_distance,
+                                    covered_fraction=m.covered_fraction,
                                     area_ratio=m.area_ratio, small_part=SMALL_PART,
                                     labels=np.array(labels if labels is not None else [], dtype=str),
-                                    ranked_by="relative_distance/covered_fraction", score=m.score, nearest=np.array(result["nearest"]),
+                                    ranked_by="ranking_distance/covered_fraction", score=m.score, nearest=np.array(result["nearest"]),
                                     metric=args.metric, options=json.dumps(options), n_samples=args.samples,
                                     resolution=args.resolution, seed=args.seed)
     status = 1 if unusable and args.strict else 0
@@ -686,7 +688,8 @@ def _pairwise_partial(args) -> int:
     left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
     print(f"{len(files)} shapes{left_out}, {len(files) * (len(files) - 1)} ordered pairs (each shape as a part of "
           f"each other), {args.metric} metric, {args.samples} samples per part, {seconds:.1f} s; nearest whole "
-          f"by the relative partial distance per share of the whole covered")
+          f"by the partial ranking distance (distortion and curvature, ÷ the whole's diameter) per share of the "
+          f"whole covered")
     if store is not None:
         print(f"  store {args.store}: {store.reused} of {len(files)} shapes read from it, {store.computed} computed")
     width = max(len(f) for f in files)
@@ -697,8 +700,9 @@ def _pairwise_partial(args) -> int:
             mark = f"   <- keeps only {m.area_ratio[i, j]:.0%} of its area: placement unreliable"
         elif labels is not None and labels[j] != labels[i]:
             mark = f"   <- another class ({labels[i]} vs {labels[j]})"
-        print(f"  {f:<{width}}  in {files[j]}: {m.score[i, j]:.4g} = {m.relative_distance[i, j]:.4%} of its "
-              f"diameter (distance {m.distance[i, j]:.6g}) / {m.covered_fraction[i, j]:.1%} of it covered{mark}")
+        print(f"  {f:<{width}}  in {files[j]}: {m.score[i, j]:.4g} = {m.ranking_distance[i, j]:.4%} of its "
+              f"diameter (distance {m.distance[i, j]:.6g}, {m.relative_distance[i, j]:.4%}) / "
+              f"{m.covered_fraction[i, j]:.1%} of it covered{mark}")
     if labels is not None:
         print(f"  labels: nearest-whole accuracy {result['nn_accuracy']:.1%} (no equal error rate: the partial "
               "distance is not symmetric)")
@@ -735,7 +739,7 @@ def _search_partial(args) -> int:
         return 0
     n = r.full_matches + r.skipped
     clouds = f", {r.skipped} point clouds left out" if r.skipped else ""
-    print(f"{len(r.neighbors)} nearest of {n} shapes by the relative partial distance per share covered "
+    print(f"{len(r.neighbors)} nearest of {n} shapes by the partial ranking distance per share covered "
           f"({args.query} as a part of each, "
           f"{args.metric} metric); {r.full_matches} matched{clouds} (exact: no pruning), {seconds:.1f} s")
     m = r.partial
@@ -744,6 +748,7 @@ def _search_partial(args) -> int:
         j = x.index
         mark = (f"   <- the part keeps only {m.area_ratio[0, j]:.0%} of its area: placement unreliable"
                 if m.small[0, j] else "")
-        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.4g} = {m.relative_distance[0, j]:.4%} of its diameter "
-              f"(distance {m.distance[0, j]:.6g}) / {m.covered_fraction[0, j]:.1%} of it covered{mark}")
+        print(f"  {i:>2}. {x.name:<{width}}  {x.distance:.4g} = {m.ranking_distance[0, j]:.4%} of its diameter "
+              f"(distance {m.distance[0, j]:.6g}, {m.relative_distance[0, j]:.4%}) / {m.covered_fraction[0, j]:.1%} "
+              f"of it covered{mark}")
     return 0
