@@ -1,25 +1,26 @@
 """Which whole is a part of? TOSCA parts ranked against the 80 TOSCA wholes by the partial distance.
 
 Run:  .venv/bin/python benchmarks/studies/partial_recognition.py [--data DIR] [--per-class 1]
-          [--keep 0.6] [--kind plane] [--jobs 2] [--json benchmarks/studies/partial_recognition.json]
-          [--set KIND KEEP JSON ...] [--bridge 0|1|choose]
+          [--offset 0] [--keep 0.6] [--kind plane] [--jobs 2]
+          [--json benchmarks/studies/partial_recognition.json] [--set KIND KEEP JSON ...] [--bridge 0|1|choose]
 
 For each TOSCA class, ``--per-class`` parts are cut (:func:`gromov.perturb.cut`, ``--kind``,
-keeping ``--keep`` of the area, seed = the part's number) from the class's lowest poses; each part
-is matched into every one of the 80 wholes except the pose it was cut from
-(:func:`gromov.partial.match_partial` as ``partial_matrix`` calls it: the geodesic metric, 3,000
-working vertices, 100 samples, ``bridge=PARTIAL_RANK_BRIDGE``; every whole prepared once and shared with the ``--jobs`` forked workers). The wholes
-are ranked by the partial match's relative distance (half the weighted RMS of the one-sided
-residuals over the whole's diameter); the score is the fraction of parts whose nearest whole is
-of their class (the aim: at least 95%), with the rank of the nearest
-whole of the right class and the covered fraction of the area, per part, in the JSON; and the
-same fraction ranked by the relative distance ÷ the covered fraction (``gromov pairwise
---partial``'s score), ``nearest_of_own_class_by_score``; each whole's geodesic diameter and area
-(``wholes_info``) and each part's area, for other rankings. ``--rescore JSON`` adds that to a
-results file made before, from its rows, without matching again. ``--set KIND KEEP JSON``,
-repeated, runs several sets of parts against the wholes prepared once (instead of ``--kind``,
-``--keep``, ``--json``); ``--bridge`` the parts' ``bridge`` (default
-``gromov.partial.PARTIAL_RANK_BRIDGE``, what ``partial_matrix`` ranks with).
+keeping ``--keep`` of the area, seed = the pose's place in the class's list) from the class's
+poses in order, from the ``--offset``-th on; each part is matched into every one of the 80 wholes
+except the pose it was cut from (:func:`gromov.partial.match_partial` as ``partial_matrix`` calls
+it: the geodesic metric, 3,000 working vertices, 100 samples, ``bridge=PARTIAL_RANK_BRIDGE``;
+every whole prepared once and shared with the ``--jobs`` forked workers). Each pair's relative
+distance, covered fraction and ranking distance (the search's objective ÷ the whole's diameter)
+are written; the wholes are ranked three ways, and for each the fraction of parts whose nearest
+whole is of their class is reported (the aim: at least 95%): by the relative distance
+(``nearest_of_own_class``), by it ÷ the covered fraction (``nearest_of_own_class_by_score``), and
+by the ranking distance ÷ the covered fraction, what ``gromov pairwise --partial`` ranks by
+(``nearest_of_own_class_by_ranking_score``; each row's ``nearest`` and ``rank_of_own_class``).
+Each whole's geodesic diameter and area (``wholes_info``) and each part's area are in the JSON,
+for other rankings. ``--rescore JSON`` adds the score's rankings to a results file made before,
+from its rows, without matching again. ``--set KIND KEEP JSON``, repeated, runs several sets of
+parts against the wholes prepared once (instead of ``--kind``, ``--keep``, ``--json``);
+``--bridge`` the parts' ``bridge`` (default ``gromov.partial.PARTIAL_RANK_BRIDGE``).
 """
 
 from __future__ import annotations
