@@ -656,7 +656,7 @@ class PartialMatrix:
         fitting a small region well (docs/design/partial.md)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             s = self.ranking_distance / self.covered_fraction
-        s[(self.covered_fraction == 0) & np.isfinite(self.relative_distance)] = np.inf
+        s[(self.covered_fraction == 0) & np.isfinite(self.ranking_distance)] = np.inf
         if self.same:
             np.fill_diagonal(s, 0.0)
         return s
