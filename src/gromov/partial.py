@@ -543,7 +543,7 @@ def match_partial(X, Y, metric: str = PARTIAL_METRIC, *, n_samples: int = 100, s
     # the objective the search minimised, in the distance's units: what parts are ranked by
     bent = 0.0
     if hx is not None:
-        costs = (curvature**2 * sy.mesh.area) * (hx - sy.curvature[img.vertex(sy.mesh.faces)]) ** 2
+        costs = curvature_costs(sx, sy, P, curvature, hx)[np.arange(len(P)), img.vertex(sy.mesh.faces)]
         bent = float(np.sum(W.sum(axis=1) * costs))
     ranking = 0.5 * np.sqrt((stress + bent) / W.sum()) / sy.diameter
     T = _placed(sx, sy, P, img, wp, n_local, rows.T if bridged else None)
