@@ -375,6 +375,7 @@ def test_cli_partial(tmp_path, capsys):
     assert main(argv) == 0
     got = json.loads(capsys.readouterr().out)
     assert got["partial"] is True and got["metric"] == "geodesic" and 0.3 < got["covered_fraction"] <= 1.0
+    assert got["ranking_distance"] >= got["relative_distance"]
     arrays = np.load(out)
     assert arrays["y_covered"].shape == (whole.n_vertices,) and arrays["x_weight"].shape == (20,)
     assert arrays["x_to_y_dense_vertex"].shape == (p.mesh.n_vertices,)

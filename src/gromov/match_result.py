@@ -143,6 +143,7 @@ class MatchResult:
         if self.partial:
             out["partial"] = True
             out["covered_fraction"] = self.covered_fraction
+            out["ranking_distance"] = self.ranking_distance if np.isfinite(self.ranking_distance) else None
         return out
 
     @property
