@@ -403,6 +403,7 @@ def test_a_whole_shape_is_matched_as_gromov_match_does():
         part = gromov.match(shape, y, "geodesic", n_samples=20, resolution=None, partial=True)
         assert part.partial and full.distance > 0
         assert part.distance == full.distance and part.relative_distance == full.relative_distance
+        assert part.ranking_distance == part.relative_distance   # no curvature term in a full match
         np.testing.assert_array_equal(part.x_to_y_vertex, full.x_to_y_vertex)
         assert part.covered_fraction > 0.9
     assert match_partial(plane, y, n_samples=20, resolution=None).pair_distortion.shape == (20, 20)

@@ -556,7 +556,8 @@ def _result(sx, sy, P, Q, img, wp, T, q_images, residual, dis, r, dense, metric,
             **fit) -> MatchResult:
     """The partial :class:`MatchResult` of the part's sample images ``img`` and the placed map
     ``T``: the covered region, the dense maps, Y's samples' images inside the region
-    (``q_images`` on X's working mesh, or else the part's vertex whose image is nearest)."""
+    (``q_images`` on X's working mesh, or else the part's vertex whose image is nearest);
+    ``ranking_distance`` in ``fit``, else the relative distance."""
     xy_face, xy_bary, xy_vertex = sy.locate(img)
     # the dense map (working vertices of X -> working vertices of Y), the covered region
     h = sy.mesh.mean_edge_length
@@ -585,6 +586,7 @@ def _result(sx, sy, P, Q, img, wp, T, q_images, residual, dis, r, dense, metric,
     # Y's samples inside the region
     yx_face, yx_bary, yx_vertex = _back_images(sx, sy, Q, T, covered_w[Q], q_images)
     diam = diameter
+    fit.setdefault("ranking_distance", 0.5 * dis / diam)   # nothing but the distortion was minimised
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
         distortion_l2=dis, distortion_linf=norm_value(r, np.inf), norm="l2", metric=metric, solver="gmds",
@@ -1049,5 +1051,4 @@ def _as_whole(sx, sy, n_samples, seed, search, dense, n_local, metric, t0) -> Ma
     T = _placed(sx, sy, P, fit.img_p, wp, n_local)
     return _result(sx, sy, P, Q, fit.img_p, wp, T, fit.img_q, residual, norm_value(r, 2.0), r, dense, metric,
                    t0, n_iter=int(fit.n_iter), converged=bool(fit.converged), history=np.asarray(fit.history),
-                   orientation=fit.orientation, diameter=max(sx.diameter, sy.diameter),
-                   ranking_distance=0.5 * norm_value(r, 2.0) / max(sx.diameter, sy.diameter))
+                   orientation=fit.orientation, diameter=max(sx.diameter, sy.diameter))
