@@ -392,6 +392,79 @@ def test_input_zoomout_brings_back_a_region_placed_far_away():
     assert np.mean(stuck[patch] == ids[patch]) < 0.5
 
 
+def test_zoomout_energy_is_zero_for_the_identity_and_grows_with_a_misplaced_region():
+    """E_k(T) = mean ||Phi_X(v) - Phi_Y(T(v)) C^T||^2: the identity of a shape is carried exactly
+    (C = I), and a patch sent to the far side makes a jump no functional map of k smooth
+    eigenfunctions carries."""
+    from gromov.dense import zoomout_energy
+    from gromov.gh import ShapeMetric
+
+    s = ShapeMetric(bumpy_torus(), "diffusion", resolution=300)
+    v = s.input.vertices
+    ids = np.arange(s.input.n_vertices)
+    assert zoomout_energy(s, s, ids, 40) < 1e-9
+    d = np.linalg.norm(v - v[0], axis=1)
+    patch = d < np.quantile(d, 0.06)
+    wrong = ids.copy()
+    wrong[patch] = np.argsort(np.linalg.norm(v - (-v[0]), axis=1))[:patch.sum()]
+    assert zoomout_energy(s, s, wrong, 40) > 0.01
+    assert zoomout_energy(s, s, wrong, 40) > zoomout_energy(s, s, wrong, 20)   # more of it seen at higher k
+
+
+def test_refine_better_keeps_the_start_of_lower_energy_and_refines_it_as_one_run(monkeypatch):
+    """Splitting the steps at ``split`` changes nothing: one start gives input_zoomout's map; of a
+    right and a far-off start (the global steps disabled, so that it stays off), the right one
+    is kept, whichever comes first."""
+    import gromov.dense as gd
+    from gromov.dense import input_zoomout, refine_better
+    from gromov.gh import ShapeMetric
+
+    s = ShapeMetric(bumpy_torus(), "diffusion", resolution=300)
+    rng = np.random.default_rng(0)
+    start = rng.permutation(s.input.n_vertices)   # no map: the steps make of it what they can
+    got, k = refine_better(s, s, [start], split=28)
+    np.testing.assert_array_equal(got, input_zoomout(s, s, start))
+    assert k == 0
+    v = s.input.vertices
+    ids = np.arange(s.input.n_vertices)
+    d = np.linalg.norm(v - v[0], axis=1)
+    patch = d < np.quantile(d, 0.1)
+    wrong = ids.copy()
+    wrong[patch] = np.argsort(np.linalg.norm(v - (-v[0]), axis=1))[:patch.sum()]
+    monkeypatch.setattr(gd, "INPUT_GLOBAL", 0)
+    assert np.mean(input_zoomout(s, s, wrong, global_k=0)[patch] == ids[patch]) < 0.5
+    for order in ([wrong, ids], [ids, wrong]):
+        got, k = refine_better(s, s, order)
+        assert order[k] is ids
+        assert np.mean(got == ids) > 0.99
+    with pytest.raises(ValueError, match="at least one"):
+        refine_better(s, s, [])
+
+
+def test_a_welded_shape_gets_the_placement_its_refinement_explains_better(data_dir, monkeypatch):
+    """david0 (5,000 vertices) with three welds matched to itself without them: the placement
+    from all landmarks carries parts of the welded limbs to the parts they were glued to, and the
+    map refined from it keeps some there; with ``DENSE_CHOICE`` the refinement of the placement
+    from the nearest landmarks has the lower ZoomOut energy and is kept, and none does."""
+    import gromov.dense as gd
+    from gromov.perturb import weld
+    from gromov.resolution import simplify
+
+    s = simplify(gromov.load(data_dir / "tosca" / "david0.off.gz"), 5000).mesh
+    clean = Mesh(s.vertices, s.faces)
+    p = weld(clean, 3)
+    welded, home = Mesh(p.mesh.vertices, p.mesh.faces), p.vertex_map
+    geodesic = gromov.metric_solver(clean, "geodesic").pairwise()
+    far = 0.1 * geodesic.max()
+    kept = {}
+    for choice in (0, 16):
+        monkeypatch.setattr(gd, "DENSE_CHOICE", choice)
+        r = gromov.match(welded, clean, dense=True)
+        kept[choice] = np.mean(geodesic[r.x_to_y_dense_vertex, home] > far)
+    assert kept[0] > 0.01
+    assert kept[16] < 0.002
+
+
 def test_ring_neighbourhoods_grow_by_one_edge_per_ring():
     from gromov.dense import ring_neighbourhoods
 

@@ -33,6 +33,7 @@ that chose these settings are in ``docs/design/dense.md``.
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass
 
@@ -46,7 +47,10 @@ from .resolution import gather
 
 __all__ = ["DenseMap", "dense_maps", "anchored_map", "local_anchored_map", "landmark_distances", "zoomout", "input_zoomout",
            "laplace_beltrami_basis", "prolonged_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
-           "DENSE_REFINE", "DENSE_CANDIDATES", "DENSE_LOCAL", "REFINEMENTS", "place_small_pieces", "PIECE_PATCH"]
+           "DENSE_REFINE", "DENSE_CANDIDATES", "DENSE_LOCAL", "DENSE_CHOICE", "CHOICE_K", "REFINEMENTS",
+           "place_small_pieces", "PIECE_PATCH", "zoomout_energy", "refine_better", "placements_agree"]
+
+logger = logging.getLogger(__name__)
 
 #: Heat-kernel diffusion time of the dense placement, relative to the match's.
 DENSE_TAU_SCALE = 0.5
@@ -54,6 +58,16 @@ DENSE_TAU_SCALE = 0.5
 #: the default: from all of them, trimmed (:func:`anchored_map`). 16 repairs welded shapes and
 #: loses on TOPKIDS (docs/design/dense.md, "Placed from the nearest landmarks").
 DENSE_LOCAL = 0
+#: Beside the default placement, each vertex also placed from this many of its nearest landmarks;
+#: both refined on the input meshes up to CHOICE_K eigenfunctions and the one of lower ZoomOut
+#: energy refined on (:func:`refine_better`; docs/design/dense.md, "Two placements, one kept").
+#: 0: the default placement alone.
+DENSE_CHOICE = 16
+#: The eigenfunctions up to which both placements are refined and at which their energies compare.
+CHOICE_K = 60
+#: Where both placements put at least CHOICE_AGREE of the working vertices within CHOICE_RADIUS
+#: mean working edges of each other, the default one is refined alone: they are one start.
+CHOICE_AGREE, CHOICE_RADIUS = 0.995, 5.0
 #: With ``local=0``: the fraction of the landmarks kept, and how many trimming rounds.
 DENSE_KEEP = 0.7
 DENSE_ROUNDS = 3
@@ -233,13 +247,15 @@ def local_anchored_map(ax: np.ndarray, ay: np.ndarray, k: int = 16) -> np.ndarra
     -------
     ndarray (n_X,) of int64
     """
-    ax, ay = _landmark_pair(np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64))
+    ax, ay = _landmark_pair(np.asarray(ax), np.asarray(ay))
     k = int(min(max(k, 3), ax.shape[1]))
     near = np.argpartition(ax, k - 1, axis=1)[:, :k]
-    m = np.zeros_like(ax)
+    # single precision, as anchored_map: half the time of the products, the same map but for near-ties
+    ax32, ay32 = ax.astype(np.float32), ay.astype(np.float32)
+    m = np.zeros_like(ax32)
     np.put_along_axis(m, near, 1.0, axis=1)
-    cost = m @ (ay * ay).T
-    cost -= 2.0 * ((m * ax) @ ay.T)
+    cost = m @ (ay32 * ay32).T
+    cost -= 2.0 * ((m * ax32) @ ay32.T)
     return np.argmin(cost, axis=1).astype(np.int64)
 
 
@@ -584,23 +600,95 @@ def input_zoomout(sx, sy, T: np.ndarray, *, k_start: int = INPUT_START, k_end: i
     -------
     ndarray (n_X,) of int64
     """
+    T = _input_map(sx, T)
+    a, ma, phy = _input_arrays(sx, sy, k_end)
+    k_end = a.shape[1]
+    steps = [(k, k) for k in range(min(k_start, k_end), k_end + 1, step)]
+    return _zoomout_steps(sx, sy, T, a, ma, phy, steps, rings=rings, global_k=global_k, orthogonal=orthogonal)
+
+
+def _input_map(sx, T) -> np.ndarray:
+    """``T`` checked: one vertex of Y's input mesh per input vertex of X."""
     T = np.asarray(T, dtype=np.int64)
     if T.shape != (sx.input.n_vertices,):
         raise ValueError(f"T must have one vertex of Y per input vertex of X, shape "
                          f"({sx.input.n_vertices},), got {T.shape}")
-    phx, mx = _input_basis(sx, k_end)
-    phy, my = _input_basis(sy, k_end)
-    k_end = min(k_end, phx.shape[1], phy.shape[1])
+    return T
+
+
+def _input_arrays(sx, sy, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(Phi_X, M_X Phi_X, Phi_Y)`` of the input meshes, first ``k`` (at most what both have),
+    single precision, as the refinement uses them."""
+    phx, mx = _input_basis(sx, k)
+    phy, my = _input_basis(sy, k)
+    k = min(k, phx.shape[1], phy.shape[1])
     # each basis orthonormal for the mass over the total area (Phi sqrt(A), M / A): the relation
     # Phi_X(v) = Phi_Y(T(v)) C^T holds between shapes of different sizes, and the values are
     # of order 1, so that single precision holds them: half the time of the products, and the
     # maps agree but for near-ties (docs/design/dense.md, "Cost")
     root_x, root_y = np.sqrt(mx.sum()), np.sqrt(my.sum())
-    a = (phx[:, :k_end] * root_x).astype(np.float32)
-    ma = (mx[:, None] * phx[:, :k_end] / root_x).astype(np.float32)
-    phy = (phy[:, :k_end] * root_y).astype(np.float32)
-    steps = [(k, k) for k in range(min(k_start, k_end), k_end + 1, step)]
-    return _zoomout_steps(sx, sy, T, a, ma, phy, steps, rings=rings, global_k=global_k, orthogonal=orthogonal)
+    a = (phx[:, :k] * root_x).astype(np.float32)
+    ma = (mx[:, None] * phx[:, :k] / root_x).astype(np.float32)
+    return a, ma, (phy[:, :k] * root_y).astype(np.float32)
+
+
+def zoomout_energy(sx, sy, T: np.ndarray, k: int) -> float:
+    r"""Mean ZoomOut energy of the input-vertex map ``T`` on the first ``k`` eigenfunctions:
+
+    .. math:: E_k(T) = \frac{1}{n_X} \sum_v \lVert \Phi_X(v) - \Phi_Y(T(v))\, C^\top \rVert^2,
+              \quad C = \Phi_X^\top M_X \Phi_Y[T],
+
+    in the bases of :func:`input_zoomout` (orthonormal for the mass over the total area): how far
+    the map is from one that a functional map of ``k`` eigenfunctions carries, what ZoomOut's
+    steps lower (Melzi et al., SIGGRAPH Asia 2019, §4). A region placed on the wrong part of Y is
+    a jump that no such functional map makes.
+    """
+    return _energy(*_input_arrays(sx, sy, INPUT_K), _input_map(sx, T), k)
+
+
+def _energy(a, ma, phy, T, k: int) -> float:
+    """:func:`zoomout_energy` from the refinement's arrays."""
+    k = min(int(k), a.shape[1])
+    b = phy[T, :k]
+    with one_blas_thread():
+        C = ma[:, :k].T @ b
+        r = a[:, :k] - b @ C.T
+    return float(np.mean(np.einsum("ij,ij->i", r, r, dtype=np.float64)))
+
+
+def refine_better(sx, sy, starts, *, split: int = CHOICE_K) -> tuple[np.ndarray, int]:
+    """Several starts of one map refined, the one ZoomOut explains best kept.
+
+    Each input-vertex map of ``starts`` takes the steps of :func:`input_zoomout` (its defaults)
+    up to ``split`` eigenfunctions; the one of lowest :func:`zoomout_energy` there takes the
+    rest. One start gives :func:`input_zoomout`'s map.
+
+    Returns
+    -------
+    (ndarray (n_X,) of int64, int)
+        The refined map and the index of the start it came from.
+    """
+    if not len(starts):
+        raise ValueError("refine_better needs at least one start")
+    a, ma, phy = _input_arrays(sx, sy, INPUT_K)
+    k_end = a.shape[1]
+    steps = [(k, k) for k in range(min(INPUT_START, k_end), k_end + 1, INPUT_STEP)]
+    early, late = [st for st in steps if st[0] <= split], [st for st in steps if st[0] > split]
+    opts = {"rings": INPUT_RINGS, "global_k": INPUT_GLOBAL}
+    maps = [_zoomout_steps(sx, sy, _input_map(sx, T), a, ma, phy, early, **opts) for T in starts]
+    energies = [_energy(a, ma, phy, T, split) for T in maps]
+    best = int(np.argmin(energies))
+    logger.debug("dense: ZoomOut energies at k=%d of the starts: %s", split, np.round(energies, 4))
+    return _zoomout_steps(sx, sy, maps[best], a, ma, phy, late, **opts), best
+
+
+def placements_agree(s, t1: np.ndarray, t2: np.ndarray, *, agree: float = CHOICE_AGREE,
+                     radius: float = CHOICE_RADIUS) -> bool:
+    """Whether two placements (working vertices of ``s``) put at least ``agree`` of the vertices
+    within ``radius`` mean working edges of each other."""
+    v = s.mesh.vertices
+    d = np.linalg.norm(v[np.asarray(t1)] - v[np.asarray(t2)], axis=1)
+    return bool(np.mean(d <= radius * s.mesh.mean_edge_length) >= agree)
 
 
 def _zoomout_steps(sx, sy, T: np.ndarray, a: np.ndarray, ma: np.ndarray, phy: np.ndarray, steps, *,
@@ -759,7 +847,7 @@ def _by_file_id(s, face, bary, vertex) -> DenseMap:
 
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
                local: int | None = None, keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
-               refine: str | None = DENSE_REFINE) -> tuple[DenseMap, DenseMap]:
+               refine: str | None = DENSE_REFINE, choice: int | None = None) -> tuple[DenseMap, DenseMap]:
     """Dense maps X -> Y and Y -> X from paired landmarks.
 
     Parameters
@@ -780,6 +868,11 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         Refine each placed map by :func:`input_zoomout` on the input meshes ("input"), or by
         :func:`zoomout` on the working meshes ("zoomout"); meshes only (a point cloud's map is
         the placed one).
+    choice : int, optional
+        Default: :data:`DENSE_CHOICE`, read at each call. With ``local=0`` and ``refine="input"``,
+        each direction is also placed from each vertex's ``choice`` nearest landmarks; where the
+        two placements differ (:func:`placements_agree`), both are refined and the one of lower
+        ZoomOut energy kept (:func:`refine_better`). 0: the default placement alone.
 
     Returns
     -------
@@ -791,6 +884,9 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     local = DENSE_LOCAL if local is None else local
     if not (isinstance(local, (int, np.integer)) and local >= 0):
         raise ValueError(f"local must be a non-negative number of landmarks, got {local!r}")
+    choice = DENSE_CHOICE if choice is None else choice
+    if not (isinstance(choice, (int, np.integer)) and choice >= 0):
+        raise ValueError(f"choice must be a non-negative number of landmarks, got {choice!r}")
     ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
     ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
     if local:
@@ -807,10 +903,17 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
             _input_basis(s, INPUT_K)
             _input_rings(s, INPUT_RINGS)
 
-    def one_way(a, b, t):
+    second = bool(choice) and not local and refine_input
+
+    def one_way(a, b, t, da, db):
         face, bary, vertex = _input_images(a, b, t)
         if refine_input:
-            vertex = input_zoomout(a, b, vertex)
+            starts = [vertex]
+            if second:   # the placement from the nearest landmarks, where it differs
+                t2 = local_anchored_map(da, db, int(choice))
+                if not placements_agree(b, t, t2):
+                    starts.append(_input_images(a, b, t2)[2])
+            vertex = refine_better(a, b, starts)[0] if len(starts) > 1 else input_zoomout(a, b, vertex)
             face, bary = _at_vertices(b.input, vertex)
         if meshes and not a.working.source_kept.all():   # small pieces move with the surface
             vertex = place_small_pieces(a, b, vertex)
@@ -819,7 +922,7 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
             face[out], bary[out] = _at_vertices(b.input, vertex[out])
         return _by_file_id(a, face, bary, b.input.input_ids[vertex])
 
-    ways = ((sx, sy, t_xy), (sy, sx, t_yx))
+    ways = ((sx, sy, t_xy, ax, ay), (sy, sx, t_yx, ay, ax))
     if not refine_input or (os.cpu_count() or 1) < 2:
         return one_way(*ways[0]), one_way(*ways[1])
     # the two directions at once, one BLAS thread each: their products and ring searches
