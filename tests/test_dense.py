@@ -441,12 +441,12 @@ def test_refine_better_keeps_the_start_of_lower_energy_and_refines_it_as_one_run
         refine_better(s, s, [])
 
 
-def test_a_welded_shape_gets_the_placement_its_refinement_explains_better(data_dir, monkeypatch):
+def test_a_welded_shape_gets_the_placement_its_refinement_explains_better(data_dir):
     """david0 (5,000 vertices) with three welds matched to itself without them: the placement
-    from all landmarks carries parts of the welded limbs to the parts they were glued to, and the
-    map refined from it keeps some there; with ``DENSE_CHOICE`` the refinement of the placement
-    from the nearest landmarks has the lower ZoomOut energy and is kept, and none does."""
-    import gromov.dense as gd
+    from all landmarks carries parts of the welded limbs to the parts they were glued to (3.4% of
+    the vertices more than a tenth of the diameter from their truth, mean error 1.25 x 100 /
+    sqrt(area), with ``DENSE_CHOICE = 0``: a diagnostic run); the refinement of the placement from the nearest
+    landmarks has the lower ZoomOut energy, is kept, and places every vertex near its truth."""
     from gromov.perturb import weld
     from gromov.resolution import simplify
 
@@ -454,15 +454,11 @@ def test_a_welded_shape_gets_the_placement_its_refinement_explains_better(data_d
     clean = Mesh(s.vertices, s.faces)
     p = weld(clean, 3)
     welded, home = Mesh(p.mesh.vertices, p.mesh.faces), p.vertex_map
-    geodesic = gromov.metric_solver(clean, "geodesic").pairwise()
-    far = 0.1 * geodesic.max()
-    kept = {}
-    for choice in (0, 16):
-        monkeypatch.setattr(gd, "DENSE_CHOICE", choice)
-        r = gromov.match(welded, clean, dense=True)
-        kept[choice] = np.mean(geodesic[r.x_to_y_dense_vertex, home] > far)
-    assert kept[0] > 0.01
-    assert kept[16] < 0.002
+    r = gromov.match(welded, clean, dense=True)
+    e = dense_errors(r.x_to_y_dense_face, r.x_to_y_dense_bary, clean, home) / np.sqrt(clean.area)
+    radius = FastMarching(clean.vertices, clean.faces).distances(np.array([0])).max() / np.sqrt(clean.area)
+    assert np.mean(e > 0.1 * radius) == 0.0   # a tenth of vertex 0's eccentricity: at most the diameter's
+    assert 100 * e.mean() < 0.5
 
 
 def test_ring_neighbourhoods_grow_by_one_edge_per_ring():

@@ -201,8 +201,10 @@ def main(argv=None) -> None:
             summary[kind][f"kept_by_{k}"] = float(np.mean([r[r[f"kept_by_{k}"]]["mean"] for r in rs]))
         summary[kind]["best_of_two"] = float(np.mean([min(r["all"]["mean"], r["local"]["mean"]) for r in rs]))
         print(f"{kind}: mean of the pairs' means " + ", ".join(f"{k} {v:.2f}" for k, v in summary[kind].items()))
-    write_results(args.json, {"command": "python benchmarks/studies/probe_dense_choice.py " + shlex.join(
-                                  argv if argv is not None else sys.argv[1:]),
+    given = list(argv if argv is not None else sys.argv[1:])
+    if args.remeshed:   # the copies' folder is the reader's own: R, as in the docstring
+        given = [("R" if a == args.remeshed else a.replace(args.remeshed, "R")) for a in given]
+    write_results(args.json, {"command": "python benchmarks/studies/probe_dense_choice.py " + shlex.join(given),
                               "local": LOCAL, "split": SPLIT, "summary": summary, "rows": rows,
                               "seconds": time.perf_counter() - t0})
 
