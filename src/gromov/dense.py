@@ -913,7 +913,7 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
                 t2 = local_anchored_map(da, db, int(choice))
                 if not placements_agree(b, t, t2):
                     starts.append(_input_images(a, b, t2)[2])
-            vertex = refine_better(a, b, starts)[0] if len(starts) > 1 else input_zoomout(a, b, vertex)
+            vertex = refine_better(a, b, starts)[0]   # one start: input_zoomout's map
             face, bary = _at_vertices(b.input, vertex)
         if meshes and not a.working.source_kept.all():   # small pieces move with the surface
             vertex = place_small_pieces(a, b, vertex)
