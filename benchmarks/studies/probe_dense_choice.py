@@ -160,7 +160,7 @@ def main(argv=None) -> None:
     import gromov
     import gromov.dense as gd
     from gromov.errors import GromovWarning
-    from gromov.evaluate import GeodesicReference
+    from gromov.evaluate import GeodesicReference, dense_error
 
     warnings.simplefilter("ignore", GromovWarning)
     gd.dense_maps = _capturing(gd.dense_maps)
@@ -177,8 +177,6 @@ def main(argv=None) -> None:
         n = len(r.x_to_y_dense_face)
         tru = truth[np.arange(n)]
         ok = tru >= 0
-        from gromov.evaluate import dense_error
-
         e = dense_error(r.x_to_y_dense_face[ok], r.x_to_y_dense_bary[ok], y, tru[ok], sym, fmm=fmm)
         row["default"] = {"mean": 100 * e.mean, "median": 100 * float(np.median(e.errors))}
         for v in ("all", "local"):
