@@ -154,6 +154,82 @@ def test_prefer_returns_the_direct_map_on_the_tosca_cat(data_dir):
     assert kept.distortion_l2 <= (1 + gromov.gh.ORIENTATION_TOL) * plain.distortion_l2
 
 
+class _Images:
+    """A stand-in for a start's images: a label whose distortion the fake GMDS knows."""
+
+    def __init__(self, label):
+        self.label = label
+
+    def vertex(self, faces):
+        return np.zeros(1, dtype=np.int64)
+
+
+class _FakeGMDS:
+    """GMDS for the rule alone: a start's run returns its own images; distortions given."""
+
+    def __init__(self, distortions):
+        self.distortions, self.history = distortions, []
+
+    def solve(self, img_p, img_q):
+        return img_p, img_q, 1, True
+
+    def distortion(self, img_p, img_q, norm):
+        return self.distortions[img_p.label]
+
+
+@pytest.mark.parametrize("ratio, agreement, direct", [
+    (1.05, 0.90, True),    # within ORIENTATION_TOL: the preserving start's map, as always
+    (1.15, 0.90, True),    # beyond it, within FLIP_TOL, clearly direct, nothing else: taken
+    (1.15, 0.60, False),   # direct only just: the mirrored map stays
+    (1.30, 0.90, False),   # beyond FLIP_TOL: the mirrored map stays
+])
+def test_prefer_falls_back_on_a_clearly_direct_map_within_flip_tol(monkeypatch, ratio, agreement, direct):
+    """``orientation="prefer"`` for a mirrored first map whose reflections give nothing (none
+    found): the best orientation-preserving start's map is kept within ``ORIENTATION_TOL`` of
+    the mirrored map's distortion and, failing every other alternative, when it is clearly
+    direct (agreement above 1/2 + ``DIRECT_MARGIN``) within ``FLIP_TOL`` -- a body against its
+    own copy at another density, where the two meshes disagree by more than the body's
+    asymmetry."""
+    from types import SimpleNamespace
+
+    from gromov.gh import _Fit, _prefer_direct
+
+    monkeypatch.setattr(gromov.gh, "pair_orientation",
+                        lambda sx, sy, P, Q, p, q: agreement if p.label == "alt" else 0.1)
+    shape = SimpleNamespace(distances=None, mesh=SimpleNamespace(faces=None), symmetry=lambda n, seed: None)
+    gm = _FakeGMDS({"first": 1.0, "alt": ratio})
+    first = _Fit(_Images("first"), _Images("first"), orientation=0.1)
+    candidates = ([(_Images("alt"), _Images("alt"))], np.array([0.9]), np.array([ratio]))
+    kept = _prefer_direct(shape, shape, None, None, gm, candidates, first, 100, 0)
+    assert (kept.img_p.label == "alt") == direct
+    assert (kept.orientation > 0.5) == direct
+
+
+@pytest.mark.parametrize("mirrored_mismatch, turned", [(0.7, True), (0.95, False)])
+def test_prefer_undoes_a_half_turn_through_a_reflection(monkeypatch, mirrored_mismatch, turned):
+    """``orientation="prefer"`` for a direct first map: when no clearly direct start keeps the
+    smoothed curvature better by ``TURN_MARGIN`` but a clearly mirrored start within
+    ``TURN_TOL`` does, that start composed with a reflection (which keeps the curvature) is run,
+    and its map replaces the first one when it is clearly direct and within both tolerances."""
+    from types import SimpleNamespace
+
+    from gromov.gh import _Fit, _prefer_curvature
+
+    orientations = {"first": 0.85, "direct": 0.85, "mirrored": 0.15, "turned": 0.85}
+    mismatches = {"first": 1.0, "direct": 0.98, "mirrored": mirrored_mismatch, "turned": mirrored_mismatch}
+    monkeypatch.setattr(gromov.gh, "pair_orientation", lambda sx, sy, P, Q, p, q: orientations[p.label])
+    monkeypatch.setattr(gromov.gh, "curvature_mismatch", lambda sx, sy, P, Q, p, q: mismatches[p.label])
+    monkeypatch.setattr(gromov.gh, "_reflected",
+                        lambda sx, sy, P, Q, p, q, n, seed: iter([(_Images("turned"), _Images("turned"))]))
+    shape = SimpleNamespace()
+    gm = _FakeGMDS({"first": 1.0, "direct": 1.02, "mirrored": 1.01, "turned": 1.03})
+    first = _Fit(_Images("first"), _Images("first"), orientation=0.85)
+    starts = [(_Images("direct"), _Images("direct")), (_Images("mirrored"), _Images("mirrored"))]
+    candidates = (starts, np.array([0.85, 0.15]), np.array([1.02, 1.01]))
+    kept = _prefer_curvature(shape, shape, None, None, gm, candidates, first, 100, 0)
+    assert kept.img_p.label == ("turned" if turned else "first")
+
+
 def test_symmetry_of_an_ellipsoid_is_a_reflection():
     """With Euclidean distances an ellipsoid's orientation-reversing isometries are its three
     plane reflections and the point reflection: the map found keeps the distances, reverses

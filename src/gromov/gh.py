@@ -144,10 +144,11 @@ def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", s
     orientation : {"prefer", "ignore"}, default "prefer"
         "prefer": a mirrored map is replaced by an orientation-preserving one within
         ``ORIENTATION_TOL`` (10%) of its distortion, or by its composition with a reflection
-        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`); a
+        within ``FLIP_TOL`` (25%), clearly direct maps first (:mod:`gromov.orientation`),
+        failing those by the clearly direct one of them within ``FLIP_TOL``; a
         direct map by another within ``TURN_TOL`` (10%) that keeps the smoothed mean
-        curvature better by ``TURN_MARGIN`` (a body turned half about its long axis against
-        the right map: :mod:`gromov.curvature`). "ignore": the lowest distortion found.
+        curvature better by ``TURN_MARGIN``, or by a mirrored one composed with a reflection
+        (a body turned half about its long axis against the right map: :mod:`gromov.curvature`). "ignore": the lowest distortion found.
     search : SearchOptions, optional
         The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
     dense : bool, "input", "zoomout" or "placed", default False
@@ -289,7 +290,7 @@ def two_sided_fit(sx: ShapeMetric, sy: ShapeMetric, n_samples: int, seed: int, p
             if not fit.orientation > 0.5:
                 fit = _prefer_direct(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
             if fit.orientation > 0.5:
-                fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit)
+                fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
     return P, Q, gm, fit
 
 
@@ -428,19 +429,26 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
     (within ``ORIENTATION_TOL`` of its distortion), then from its compositions with a
     reflection of X or Y (:meth:`ShapeMetric.symmetry`, within ``FLIP_TOL``). A clearly direct
     map (agreement above 1/2 + ``DIRECT_MARGIN``) is taken at once; one direct only on part of
-    the shapes (agreement near 1/2) only if no clearly direct one turns up. ``fit`` if none."""
+    the shapes (agreement near 1/2) only if no clearly direct one turns up. Failing both, the
+    clearly direct map of lowest distortion among those runs within ``FLIP_TOL`` (the
+    preserving start's beyond ``ORIENTATION_TOL``); ``fit`` if none."""
     from ._arrays import argmin_stable
 
     at, agreement, scores = candidates
     keep = agreement > 0.5
     d_first = gm.distortion(fit.img_p, fit.img_q, 2.0)
+    clear = []   # (distortion, order, fit): the clearly direct maps within FLIP_TOL
 
     def attempt(start, tol_k):
         h0 = len(gm.history)
         alt = gm.solve(*start)
         o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
-        if o_alt > 0.5 and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + tol_k) * d_first:
-            return _Fit(*alt, gm.history[h0:], o_alt)
+        d_alt = gm.distortion(alt[0], alt[1], 2.0)
+        out = _Fit(*alt, gm.history[h0:], o_alt)
+        if o_alt > 0.5 + DIRECT_MARGIN and d_alt <= (1.0 + FLIP_TOL) * d_first:
+            clear.append((d_alt, len(clear), out))
+        if o_alt > 0.5 and d_alt <= (1.0 + tol_k) * d_first:
+            return out
         return None
 
     found = partial = None
@@ -451,23 +459,36 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
         else:
             partial = alt
     if found is None:  # the mirrored map composed with a reflection of X, then of Y
-        DX, DY = sx.distances, sy.distances
-        fp, gq = fit.img_p.vertex(sy.mesh.faces), fit.img_q.vertex(sx.mesh.faces)
-        for s_ in (sx, sy):
-            sym = s_.symmetry(n_samples, seed)
-            if sym is None:
-                continue
-            if s_ is sx:  # f o S_X on P (f carried to S_X(P) by its distances), S_X o g on Q
-                start = (anchored_images(DY, fp, DX[np.ix_(sym[P], P)]), sym[gq])
-            else:         # S_Y o f on P, g o S_Y on Q
-                start = (sym[fp], anchored_images(DX, gq, DY[np.ix_(sym[Q], Q)]))
-            alt = attempt(_at_vertices(sx, sy, *start), FLIP_TOL)
+        for start in _reflected(sx, sy, P, Q, fit.img_p, fit.img_q, n_samples, seed):
+            alt = attempt(start, FLIP_TOL)
             if alt is not None and alt.orientation > 0.5 + DIRECT_MARGIN:
                 found = alt
                 break
             if partial is None:
                 partial = alt
+    if found is None and partial is None and clear:
+        # every alternative was beyond its own tolerance: the clearly direct one of lowest
+        # distortion within FLIP_TOL (a body against its own copy at another density: the
+        # mirrored and the direct maps differ by less than the two meshes' own discrepancy)
+        found = min(clear, key=lambda c: c[:2])[2]
     return found or partial or fit
+
+
+def _reflected(sx, sy, P, Q, img_p, img_q, n_samples: int, seed: int):
+    """The two-sided correspondence ``(img_p, img_q)`` composed with a reflection of X, then
+    with one of Y (:meth:`ShapeMetric.symmetry`, each computed once per shape, when first
+    needed): a generator of starts as surface points, none for a shape without a reflection."""
+    DX, DY = sx.distances, sy.distances
+    fp, gq = img_p.vertex(sy.mesh.faces), img_q.vertex(sx.mesh.faces)
+    for s_ in (sx, sy):
+        sym = s_.symmetry(n_samples, seed)
+        if sym is None:
+            continue
+        if s_ is sx:  # f o S_X on P (f carried to S_X(P) by its distances), S_X o g on Q
+            start = (anchored_images(DY, fp, DX[np.ix_(sym[P], P)]), sym[gq])
+        else:         # S_Y o f on P, g o S_Y on Q
+            start = (sym[fp], anchored_images(DX, gq, DY[np.ix_(sym[Q], Q)]))
+        yield _at_vertices(sx, sy, *start)
 
 
 def _direct_candidates(sx, sy, P, Q, gm, starts, more: bool):
@@ -491,7 +512,7 @@ def curvature_mismatch(sx, sy, P, Q, img_p, img_q) -> float:
     return 0.5 * float(np.median(np.abs(hx[P] - hy[fp])) + np.median(np.abs(hy[Q] - hx[gq])))
 
 
-def _prefer_curvature(sx, sy, P, Q, gm, candidates, fit: _Fit) -> _Fit:
+def _prefer_curvature(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed: int) -> _Fit:
     """``orientation="prefer"`` for a direct ``fit``: a half turn against the right map.
 
     Among the clearly direct starts (agreement above 1/2 + ``DIRECT_MARGIN``) whose distortion
@@ -499,25 +520,41 @@ def _prefer_curvature(sx, sy, P, Q, gm, candidates, fit: _Fit) -> _Fit:
     best (:func:`curvature_mismatch`); if it beats the fit's mismatch by ``TURN_MARGIN``, GMDS
     from it, and its result replaces the fit when it is still clearly direct, within
     ``TURN_TOL`` of the distortion and ``TURN_MARGIN`` of the mismatch (:mod:`gromov.curvature`).
+    Failing that, the same among the clearly mirrored starts, each composed with a reflection
+    of X, then of Y (:func:`_reflected`) before GMDS: a reflection keeps the curvature, so a
+    mirrored start that keeps it well is the mirror image of a direct map that does.
     """
     from ._arrays import argmin_stable
 
     at, agreement, scores = candidates
     d_fit = gm.distortion(fit.img_p, fit.img_q, 2.0)
     c_fit = curvature_mismatch(sx, sy, P, Q, fit.img_p, fit.img_q)
-    near = np.flatnonzero((agreement > 0.5 + DIRECT_MARGIN) & (scores <= (1.0 + TURN_TOL) * d_fit))
-    if not len(near):
-        return fit
-    mismatch = np.array([curvature_mismatch(sx, sy, P, Q, *at[i]) for i in near])
-    best = int(near[argmin_stable(mismatch)])
-    if not mismatch.min() < (1.0 - TURN_MARGIN) * c_fit:
-        return fit
-    h0 = len(gm.history)
-    alt = gm.solve(*at[best])
-    o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
-    if (o_alt > 0.5 + DIRECT_MARGIN and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + TURN_TOL) * d_fit
-            and curvature_mismatch(sx, sy, P, Q, alt[0], alt[1]) < (1.0 - TURN_MARGIN) * c_fit):
-        return _Fit(*alt, gm.history[h0:], o_alt)
+    within = scores <= (1.0 + TURN_TOL) * d_fit
+
+    def attempt(start):
+        h0 = len(gm.history)
+        alt = gm.solve(*start)
+        o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
+        if (o_alt > 0.5 + DIRECT_MARGIN and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + TURN_TOL) * d_fit
+                and curvature_mismatch(sx, sy, P, Q, alt[0], alt[1]) < (1.0 - TURN_MARGIN) * c_fit):
+            return _Fit(*alt, gm.history[h0:], o_alt)
+        return None
+
+    for mirrored in (False, True):
+        # the clearly direct starts; then the clearly mirrored ones, through a reflection
+        # (which keeps the curvature: a start's mismatch is its composition's)
+        side = agreement < 0.5 - DIRECT_MARGIN if mirrored else agreement > 0.5 + DIRECT_MARGIN
+        near = np.flatnonzero(side & within)
+        if not len(near):
+            continue
+        mismatch = np.array([curvature_mismatch(sx, sy, P, Q, *at[i]) for i in near])
+        if not mismatch.min() < (1.0 - TURN_MARGIN) * c_fit:
+            continue
+        best = at[int(near[argmin_stable(mismatch)])]
+        for start in (_reflected(sx, sy, P, Q, *best, n_samples, seed) if mirrored else (best,)):
+            alt = attempt(start)
+            if alt is not None:
+                return alt
     return fit
 
 
