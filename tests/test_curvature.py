@@ -80,12 +80,13 @@ def test_the_kid_is_not_turned_about_its_long_axis(kid00):
 
 
 def test_a_half_turn_is_undone_through_a_reflection(kid00):
-    """TOPKIDS kid15 -> kid00: the map found keeps the orientation but is a half turn (nearer
-    the mirrored ground truth), and no clearly direct start keeps the curvature better; a
-    clearly *mirrored* start does (the left/right mirror of the right map, whose curvature
-    mismatch is the right map's). Composed with a reflection and refined, it is the right map."""
+    """TOPKIDS kid15 -> kid00: the first map keeps the orientation but is a half turn (sample
+    error 0.27 of the diameter against the direct truth, 0.16 against the mirrored one), and no
+    clearly direct start keeps the curvature better; a clearly *mirrored* start does (the
+    left/right mirror of the right map, whose curvature mismatch is the right map's). Composed
+    with a reflection and refined, it is the right map (0.098 against 0.194)."""
     kids, matched, geo = kid00
     r = matched("kid15")
     e = correspondence_error(r, geo, kids.ground_truth("kid15"), kids.symmetry("kid00"))
     assert r.orientation > 0.65
-    assert e.branch == "direct" and e.mean < e.mirrored_mean
+    assert e.branch == "direct" and e.mean < 0.12 and e.mirrored_mean > 0.15
