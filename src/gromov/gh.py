@@ -437,17 +437,14 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
     at, agreement, scores = candidates
     keep = agreement > 0.5
     d_first = gm.distortion(fit.img_p, fit.img_q, 2.0)
-    clear = []   # (distortion, order, fit): the clearly direct maps within FLIP_TOL
+    clear = []   # (distortion, fit): the clearly direct maps within FLIP_TOL, in run order
 
     def attempt(start, tol_k):
-        h0 = len(gm.history)
-        alt = gm.solve(*start)
-        o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
-        d_alt = gm.distortion(alt[0], alt[1], 2.0)
-        out = _Fit(*alt, gm.history[h0:], o_alt)
-        if o_alt > 0.5 + DIRECT_MARGIN and d_alt <= (1.0 + FLIP_TOL) * d_first:
-            clear.append((d_alt, len(clear), out))
-        if o_alt > 0.5 and d_alt <= (1.0 + tol_k) * d_first:
+        out = _gmds_from(sx, sy, P, Q, gm, start)
+        d_alt = gm.distortion(out.img_p, out.img_q, 2.0)
+        if out.orientation > 0.5 + DIRECT_MARGIN and d_alt <= (1.0 + FLIP_TOL) * d_first:
+            clear.append((d_alt, out))
+        if out.orientation > 0.5 and d_alt <= (1.0 + tol_k) * d_first:
             return out
         return None
 
@@ -470,8 +467,16 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
         # every alternative was beyond its own tolerance: the clearly direct one of lowest
         # distortion within FLIP_TOL (a body against its own copy at another density: the
         # mirrored and the direct maps differ by less than the two meshes' own discrepancy)
-        found = min(clear, key=lambda c: c[:2])[2]
+        found = min(clear, key=lambda c: c[0])[1]   # the first run of them on a tie
     return found or partial or fit
+
+
+def _gmds_from(sx, sy, P, Q, gm, start) -> _Fit:
+    """GMDS from ``start`` (surface points of both sides): the :class:`_Fit` with its run's
+    history and its orientation agreement."""
+    h0 = len(gm.history)
+    img_p, img_q, n_iter, converged = gm.solve(*start)
+    return _Fit(img_p, img_q, n_iter, converged, gm.history[h0:], pair_orientation(sx, sy, P, Q, img_p, img_q))
 
 
 def _reflected(sx, sy, P, Q, img_p, img_q, n_samples: int, seed: int):
@@ -532,12 +537,11 @@ def _prefer_curvature(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, s
     within = scores <= (1.0 + TURN_TOL) * d_fit
 
     def attempt(start):
-        h0 = len(gm.history)
-        alt = gm.solve(*start)
-        o_alt = pair_orientation(sx, sy, P, Q, alt[0], alt[1])
-        if (o_alt > 0.5 + DIRECT_MARGIN and gm.distortion(alt[0], alt[1], 2.0) <= (1.0 + TURN_TOL) * d_fit
-                and curvature_mismatch(sx, sy, P, Q, alt[0], alt[1]) < (1.0 - TURN_MARGIN) * c_fit):
-            return _Fit(*alt, gm.history[h0:], o_alt)
+        alt = _gmds_from(sx, sy, P, Q, gm, start)
+        if (alt.orientation > 0.5 + DIRECT_MARGIN
+                and gm.distortion(alt.img_p, alt.img_q, 2.0) <= (1.0 + TURN_TOL) * d_fit
+                and curvature_mismatch(sx, sy, P, Q, alt.img_p, alt.img_q) < (1.0 - TURN_MARGIN) * c_fit):
+            return alt
         return None
 
     for mirrored in (False, True):
