@@ -611,3 +611,45 @@ def test_prolonged_eigenpairs_bound_the_true_ones_and_converge_to_them():
     # with nothing to prolong from, the Lanczos eigenpairs themselves
     same = working_mesh(m, m.n_vertices)
     np.testing.assert_array_equal(prolonged_basis(same, 10)[0], laplace_beltrami_basis(same.source, 10)[0])
+
+
+def test_the_two_input_bases_computed_at_once_are_the_sequential_ones(monkeypatch, tmp_path):
+    """``_input_bases``: with both shapes' input eigenpairs missing and two cores free, Y's are
+    computed in a forked process (which reports its pid here) while X's are computed in this
+    one; both equal, bit for bit, what the sequential computation gives."""
+    import os
+
+    import gromov.dense as dense
+    from gromov.shape_metric import ShapeMetric
+
+    m = bumpy_torus()
+    stretched = Mesh(np.asarray(m.vertices) * [1.0, 1.2, 0.9], m.faces)
+
+    def pair():
+        return (ShapeMetric(m, "diffusion", resolution=m.n_vertices // 4),
+                ShapeMetric(stretched, "diffusion", resolution=m.n_vertices // 4))
+
+    orig = dense.prolonged_basis
+
+    def spy(working, k, **kw):
+        (tmp_path / f"pid{os.getpid()}").touch()
+        return orig(working, k, **kw)
+
+    monkeypatch.setattr(dense, "prolonged_basis", spy)
+    monkeypatch.setattr(dense, "_may_fork", lambda: True)
+    sx, sy = pair()
+    dense._input_bases(sx, sy, 30)
+    pids = {p.name for p in tmp_path.iterdir()}
+    assert f"pid{os.getpid()}" in pids and len(pids) == 2   # one solve here, one in a child
+    monkeypatch.setattr(dense, "_may_fork", lambda: False)
+    rx, ry = pair()
+    dense._input_bases(rx, ry, 30)
+    for a, b in ((sx, rx), (sy, ry)):
+        assert a._input_basis[0].shape == (m.n_vertices, 30)
+        np.testing.assert_array_equal(a._input_basis[0], b._input_basis[0])
+        np.testing.assert_array_equal(a._input_basis[1], b._input_basis[1])
+    # computed: nothing to do the second time
+    for p in tmp_path.iterdir():
+        p.unlink()
+    dense._input_bases(sx, sy, 30)
+    assert not list(tmp_path.iterdir())

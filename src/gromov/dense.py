@@ -481,16 +481,16 @@ def prolonged_basis(working, k: int, *, guard: float = BASIS_GUARD,
     return np.ascontiguousarray(V @ Y[:, :k]), mass
 
 
-def _input_basis(s, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The input mesh's eigenpairs (:func:`prolonged_basis` from ``s``'s working mesh),
-    computed once per shape: of the pieces its working mesh covers
+def _input_basis(s, k: int, computed=None) -> tuple[np.ndarray, np.ndarray]:
+    """The input mesh's eigenpairs (:func:`prolonged_basis` from ``s``'s working mesh, or
+    ``computed``, its result), computed once per shape: of the pieces its working mesh covers
     (:attr:`~gromov.resolution.WorkingMesh.source_kept`), with rows and masses 0 on the pieces
     left out."""
     kept = s.working.source_kept
     n = int(kept.sum())
     cached = s._input_basis
     if cached is None or cached[0].shape[1] < min(k, n - 2):
-        phi, mass = prolonged_basis(s.working, k)
+        phi, mass = prolonged_basis(s.working, k) if computed is None else computed
         if n == len(kept):
             s._input_basis = (phi, mass)
         else:
@@ -498,6 +498,56 @@ def _input_basis(s, k: int) -> tuple[np.ndarray, np.ndarray]:
             full[kept], m[kept] = phi, mass
             s._input_basis = (full, m)
     return s._input_basis[0][:, :k], s._input_basis[1]
+
+
+def _needs_basis(s, k: int) -> bool:
+    cached = s._input_basis
+    return cached is None or cached[0].shape[1] < min(k, int(s.working.source_kept.sum()) - 2)
+
+
+#: The shapes whose input eigenpairs a forked process computes (read there, not pickled).
+_FORKED: list = []
+
+
+def _forked_basis(i: int, k: int):
+    return prolonged_basis(_FORKED[i].working, k)
+
+
+def _may_fork() -> bool:
+    """Whether a second process may take a core: two cores and two numba threads allowed (a
+    worker of :mod:`gromov.experiments.pairwise` runs on one), not a daemonic process, and
+    ``fork`` available."""
+    import multiprocessing as mp
+
+    from numba import get_num_threads
+
+    return ((os.cpu_count() or 1) >= 2 and get_num_threads() >= 2 and not mp.current_process().daemon
+            and "fork" in mp.get_all_start_methods())
+
+
+def _input_bases(sx, sy, k: int) -> None:
+    """Both shapes' input eigenpairs (:func:`_input_basis`), once per shape. Where both are
+    missing and two cores are there, Y's are computed in a forked process while X's are
+    computed here: the shift-invert Lanczos of each holds the GIL (threads would take turns),
+    and the two solves are about half the dense maps' time on two 28k-vertex meshes. The child
+    runs the same code on the same data with one BLAS thread, so the eigenpairs are those of a
+    sequential run."""
+    import multiprocessing as mp
+
+    if sx is not sy and _needs_basis(sx, k) and _needs_basis(sy, k) and _may_fork():
+        from concurrent.futures import ProcessPoolExecutor
+
+        global _FORKED
+        _FORKED = [sy]
+        try:
+            with ProcessPoolExecutor(1, mp_context=mp.get_context("fork")) as pool:
+                there = pool.submit(_forked_basis, 0, k)
+                _input_basis(sx, k)
+                _input_basis(sy, k, there.result())
+        finally:
+            _FORKED = []
+    for s in (sx, sy):
+        _input_basis(s, k)
 
 
 def ring_neighbourhoods(mesh, rings: int) -> tuple[np.ndarray, np.ndarray]:
@@ -899,8 +949,8 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)
     refine_input = refine == "input" and meshes
     if refine_input:   # per shape, once: before the two directions share them
+        _input_bases(sx, sy, INPUT_K)
         for s in (sx, sy):
-            _input_basis(s, INPUT_K)
             _input_rings(s, INPUT_RINGS)
 
     second = bool(choice) and not local and refine_input

@@ -61,6 +61,10 @@ TURN_MARGIN = 0.1
 #: ... and a map obtained by composing the mirrored one with a reflection of either shape
 #: (:meth:`ShapeMetric.symmetry`) when within this much; chosen on the held-out classes.
 FLIP_TOL = 0.25
+#: A direct map's samples whose images landed on the wrong part of the target are moved where
+#: the other samples place them (:mod:`gromov.reseat`), then GMDS again, at most this many
+#: times while the distortion falls (0: never; docs/design/initial-search.md, "Samples re-seated").
+RESEAT_ROUNDS = 3
 #: Recognition (:func:`gromov.experiments.gh_matrix`) ranks a pair of shapes by the trimmed
 #: distortion of the correspondence found with the heat-kernel diffusion metric at time
 #: ``tau``, *measured* with the heat distance at ``RANK_TAU_SCALE * tau`` (a finer scale) on
@@ -148,7 +152,10 @@ def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", s
         failing those by the clearly direct one of them within ``FLIP_TOL``; a
         direct map by another within ``TURN_TOL`` (10%) that keeps the smoothed mean
         curvature better by ``TURN_MARGIN``, or by a mirrored one composed with a reflection
-        (a body turned half about its long axis against the right map: :mod:`gromov.curvature`). "ignore": the lowest distortion found.
+        (a body turned half about its long axis against the right map: :mod:`gromov.curvature`);
+        then the direct map's samples that another place fits far better, with every other
+        pair fixed, moved there and GMDS run again while the distortion falls
+        (:mod:`gromov.reseat`, ``RESEAT_ROUNDS``). "ignore": the lowest distortion found.
     search : SearchOptions, optional
         The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
     dense : bool, "input", "zoomout" or "placed", default False
@@ -276,7 +283,8 @@ def two_sided_fit(sx: ShapeMetric, sy: ShapeMetric, n_samples: int, seed: int, p
                   radius: float | None = None, orientation: str = "prefer", discrete: bool = False):
     """``(P, Q, gm, fit)``: the samples of two prepared shapes, the GMDS solver (None for a
     discrete map) and the two-sided correspondence :func:`match` reports: the initial search,
-    then GMDS, mirror images replaced by direct maps where nearly as good."""
+    then GMDS, mirror images replaced by direct maps where nearly as good, half turns undone,
+    misplaced samples re-seated."""
     P, Q = sx.samples(n_samples, seed), sy.samples(n_samples, seed)
     gm = None if discrete else SymmetricGMDS(sx.surface, sy.surface, P, Q, p=p, max_iter=search.max_iter,
                                              tol=search.tol, radius=radius)
@@ -291,6 +299,8 @@ def two_sided_fit(sx: ShapeMetric, sy: ShapeMetric, n_samples: int, seed: int, p
                 fit = _prefer_direct(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
             if fit.orientation > 0.5:
                 fit = _prefer_curvature(sx, sy, P, Q, gm, candidates, fit, n_samples, seed)
+            if fit.orientation > 0.5 and radius is None:   # (a partial match weighs pairs by radius)
+                fit = _reseat(sx, sy, P, Q, gm, fit)
     return P, Q, gm, fit
 
 
@@ -469,6 +479,26 @@ def _prefer_direct(sx, sy, P, Q, gm, candidates, fit: _Fit, n_samples: int, seed
         # mirrored and the direct maps differ by less than the two meshes' own discrepancy)
         found = min(clear, key=lambda c: c[0])[1]   # the first run of them on a tie
     return found or partial or fit
+
+
+def _reseat(sx, sy, P, Q, gm, fit: _Fit) -> _Fit:
+    """``orientation="prefer"`` for a direct ``fit``: the images that another place fits far
+    better, with every other pair fixed, moved there (:func:`gromov.reseat.reseat_start`), then
+    GMDS; the result replaces the fit while it stays direct and lowers the two-sided L2
+    distortion, at most ``RESEAT_ROUNDS`` times."""
+    from .reseat import reseat_start
+
+    d_fit = gm.distortion(fit.img_p, fit.img_q, 2.0)
+    for _ in range(RESEAT_ROUNDS):
+        start = reseat_start(gm.X, gm.Y, P, Q, fit.img_p, fit.img_q, *gm.blocks(fit.img_p, fit.img_q))
+        if start is None:
+            break
+        alt = _gmds_from(sx, sy, P, Q, gm, start)
+        d_alt = gm.distortion(alt.img_p, alt.img_q, 2.0)
+        if not (alt.orientation > 0.5 and d_alt < d_fit):
+            break
+        fit, d_fit = alt, d_alt
+    return fit
 
 
 def _gmds_from(sx, sy, P, Q, gm, start) -> _Fit:
