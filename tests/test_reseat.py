@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-import gromov.gh as gh
-from gromov import Mesh
+from gromov import Mesh, gh
 from gromov.gmds import SurfaceDistance, SurfacePoints, SymmetricGMDS
 from gromov.metrics import metric_solver
 from gromov.reseat import covering_radius, reseat_start
@@ -28,7 +27,7 @@ def lumpy():
 
 
 def test_the_exact_map_stays(lumpy):
-    m, D, S, P, Q = lumpy
+    m, _, S, P, Q = lumpy
     ip, iq = SurfacePoints.at_vertices(m, P), SurfacePoints.at_vertices(m, Q)
     gm = SymmetricGMDS(S, S, P, Q)
     assert reseat_start(S, S, P, Q, ip, iq, *gm.blocks(ip, iq)) is None
@@ -82,7 +81,10 @@ def test_reseat_runs_where_the_map_is_direct(monkeypatch, tosca_cat0):
     ip, iq, n_iter, conv = gm.solve(ip, iq)   # GMDS alone keeps the leg where it is
     fit = _Fit(ip, iq, n_iter, conv, [], pair_orientation(sx, sx, P, Q, ip, iq))
     assert fit.orientation > 0.5
-    err = lambda f: D[f.img_p.vertex(sx.mesh.faces)[leg], P[leg]]  # noqa: E731
+
+    def err(f):
+        return D[f.img_p.vertex(sx.mesh.faces)[leg], P[leg]]
+
     assert np.median(err(fit)) > r
     monkeypatch.setattr(gh, "RESEAT_ROUNDS", 0)
     assert _reseat(sx, sx, P, Q, gm, fit) is fit

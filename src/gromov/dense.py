@@ -488,8 +488,7 @@ def _input_basis(s, k: int, computed=None) -> tuple[np.ndarray, np.ndarray]:
     left out."""
     kept = s.working.source_kept
     n = int(kept.sum())
-    cached = s._input_basis
-    if cached is None or cached[0].shape[1] < min(k, n - 2):
+    if _needs_basis(s, k):
         phi, mass = prolonged_basis(s.working, k) if computed is None else computed
         if n == len(kept):
             s._input_basis = (phi, mass)
@@ -501,6 +500,7 @@ def _input_basis(s, k: int, computed=None) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _needs_basis(s, k: int) -> bool:
+    """Whether ``s`` holds fewer input eigenpairs than ``k`` (or all there are) yet."""
     cached = s._input_basis
     return cached is None or cached[0].shape[1] < min(k, int(s.working.source_kept.sum()) - 2)
 

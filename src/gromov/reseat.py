@@ -12,9 +12,9 @@ best place for one image can be searched over every working vertex at once. For 
 over the pairs ``(x_b, y_b)`` of the correspondence, with :math:`\kappa` the ``keep``
 quantile of the current absolute residuals (:data:`gromov.gmds.TRIM_KEEP`, the trimmed
 distortion's fraction; over the residuals that are not exactly 0, so that distances that
-agree exactly on most pairs still give a cap). The cap lets the pairs that the wrong region itself distorts be
-outvoted by the rest, as least trimmed squares does (Rousseeuw, J. Am. Stat. Assoc. 79,
-1984). An image moves when its best vertex lies farther from it than the samples' covering
+agree exactly on most pairs still give a cap). The cap lets the pairs that the wrong region
+itself distorts be outvoted by the rest, as least trimmed squares does (Rousseeuw, J. Am.
+Stat. Assoc. 79, 1984). An image moves when its best vertex lies farther from it than the samples' covering
 radius (farther than any point of the target lies from its nearest sample): a jump to
 another sample's cell, not a local step, which GMDS itself makes. The moved correspondence is
 then a start for GMDS, and the caller keeps the result only if it lowers the distortion.
@@ -27,7 +27,7 @@ from numba import get_num_threads, njit
 
 from .gmds import TRIM_KEEP, SurfaceDistance, SurfacePoints
 
-__all__ = ["reseat_start", "covering_radius"]
+__all__ = ["covering_radius", "reseat_start"]
 
 
 @njit(cache=True, nogil=True)
@@ -41,7 +41,7 @@ def _capped_rows(rows, cols, skip, cap2, out, v0, v1):
                 if b != skip[i]:
                     r = rows[i, b] - cols[v, b]
                     r *= r
-                    s += r if r < cap2 else cap2
+                    s += min(r, cap2)
             out[v, i] = s
 
 
