@@ -414,6 +414,10 @@ def dense_table(summary: dict, placed: dict | None = None) -> str:
         r = summary[key]
         rows.append(f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
                     f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
+    if "ours_dense_at_samples" in summary:   # the dense map on the same points as our samples
+        r = summary["ours_dense_at_samples"]
+        rows.append(f"| ours, dense, read at our samples | {r['mean']:.2f} | {r['median']:.2f} | "
+                    f"{r['mean_direct']:.2f} | {r['gross']} | |")
     if placed is not None:
         r = placed["ours_dense"]
         rows.append(f"| ours, dense, placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} | "

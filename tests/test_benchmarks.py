@@ -360,6 +360,8 @@ def test_dense_tables_are_the_results_files():
             row = (f"| {label} | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | "
                    f"{r['gross']} | {r['seconds_per_pair']:.1f} |")
             assert row in page, row
+        r = ours[ds]["summary"]["ours_dense_at_samples"]
+        assert f"| ours, dense, read at our samples | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} |" in page
         r = placed[ds]["summary"]["ours_dense"]
         assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in page
     r = _json("dense_tosca.json")["tosca"]["summary"]["pyfm_dense"]
