@@ -653,3 +653,71 @@ def test_the_two_input_bases_computed_at_once_are_the_sequential_ones(monkeypatc
         p.unlink()
     dense._input_bases(sx, sy, 30)
     assert not list(tmp_path.iterdir())
+
+
+def test_relax_keeps_an_isometry_of_any_size_and_brings_back_moved_images():
+    """The identity onto a copy twice as large is a fixed point (the distances are compared at
+    the two shapes' scales); images moved one edge, a few rings apart, all come home; so do
+    most of a map whose every image was moved one edge."""
+    from gromov.dense import relax_isometric, ring_neighbourhoods
+    from gromov.gh import ShapeMetric
+
+    x = bumpy_torus()
+    sx = ShapeMetric(x, "diffusion", resolution=300)
+    sy = ShapeMetric(Mesh(2.0 * x.vertices, x.faces), "diffusion", resolution=300)
+    n = x.n_vertices
+    ids = np.arange(n)
+    np.testing.assert_array_equal(relax_isometric(sx, sy, ids), ids)
+    ptr, nbr = ring_neighbourhoods(x, 1)
+    rng = np.random.default_rng(5)
+    moved = ids.copy()
+    far = ids[::37]   # at least a few rings apart on the 700-vertex torus
+    for v in far:
+        ring = nbr[ptr[v]:ptr[v + 1]]
+        moved[v] = rng.choice(ring[ring != v])
+    assert np.all(moved[far] != far)
+    np.testing.assert_array_equal(relax_isometric(sx, sy, moved), ids)
+    shaken = nbr[ptr[:-1] + rng.integers(0, np.diff(ptr))]
+    assert np.mean(shaken == ids) < 0.3
+    assert np.mean(relax_isometric(sx, sy, shaken) == ids) > 0.9
+    with pytest.raises(ValueError, match="edges must be positive"):
+        relax_isometric(sx, sy, ids, edges=0)
+
+
+def test_relax_reads_no_vertex_order():
+    """Every image moves at once (Jacobi sweeps): on a permuted copy of X, the relaxed map of
+    the permuted map is the permuted relaxed map."""
+    from gromov.dense import relax_isometric, ring_neighbourhoods
+    from gromov.gh import ShapeMetric
+
+    x = bumpy_torus()
+    xp, perm = permutation_of(x, 6)   # vertex j of xp is vertex perm[j] of x
+    sx, sxp = (ShapeMetric(m, "diffusion", resolution=300) for m in (x, xp))
+    sy = ShapeMetric(bumpy_torus(), "diffusion", resolution=300)
+    ptr, nbr = ring_neighbourhoods(x, 1)
+    rng = np.random.default_rng(7)
+    shaken = nbr[ptr[:-1] + rng.integers(0, np.diff(ptr))]
+    out = relax_isometric(sx, sy, shaken)
+    np.testing.assert_array_equal(relax_isometric(sxp, sy, shaken[perm]), out[perm])
+
+
+def test_relax_sharpens_a_real_refined_map(data_dir):
+    """wolf0 -> wolf1 of TOSCA (one triangulation, so the truth is each vertex itself): the
+    local isometry step after the refinement brings more vertices to their very image and
+    lowers the mean error."""
+    from gromov.dense import relax_isometric
+
+    a = gromov.load(data_dir / "tosca" / "wolf0.off.gz")
+    b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
+    ids = np.arange(a.n_vertices)
+    r = gromov.match(a, b, dense=True)
+    refined = b.from_input_ids(r.x_to_y_dense_vertex[a.input_ids])
+    relaxed = relax_isometric(a, b, refined)
+    errors = []
+    for t in (refined, relaxed):
+        indptr, faces = b.vertex_faces
+        f = faces[indptr[t]]
+        bary = np.eye(3)[np.argmax(b.faces[f] == t[:, None], axis=1)]
+        errors.append(dense_error(f, bary, b, ids).mean)
+    assert np.mean(relaxed == ids) > np.mean(refined == ids) + 0.03
+    assert errors[1] < 0.8 * errors[0]

@@ -48,7 +48,8 @@ from .resolution import gather
 __all__ = ["DenseMap", "dense_maps", "anchored_map", "local_anchored_map", "landmark_distances", "zoomout", "input_zoomout",
            "laplace_beltrami_basis", "prolonged_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
            "DENSE_REFINE", "DENSE_CANDIDATES", "DENSE_LOCAL", "DENSE_CHOICE", "CHOICE_K", "REFINEMENTS",
-           "place_small_pieces", "PIECE_PATCH", "zoomout_energy", "refine_better", "placements_agree"]
+           "place_small_pieces", "PIECE_PATCH", "zoomout_energy", "refine_better", "placements_agree",
+           "relax_isometric", "DENSE_RELAX", "RELAX_EDGES", "RELAX_CAP", "RELAX_SWEEPS", "RELAX_MAX_RINGS"]
 
 logger = logging.getLogger(__name__)
 
@@ -86,6 +87,18 @@ ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
 #: around the current image that each step searches; the steps with at most INPUT_GLOBAL
 #: eigenfunctions search all of Y (docs/design/dense.md).
 INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS, INPUT_GLOBAL = 20, 180, 4, 2, 32
+#: After the refinement on the input meshes, each map made locally isometric
+#: (:func:`relax_isometric`); docs/design/dense.md, "Local isometry after the refinement".
+DENSE_RELAX = False
+#: :func:`relax_isometric`: the neighbourhood's radius in mean edges of the coarser mesh; the cap
+#: of a residual in the same unit, the radius itself (a residual beyond it is no slide within the
+#: neighbourhood: a weld or a glued contact); the sweeps at most.
+RELAX_EDGES = 4
+RELAX_CAP = RELAX_EDGES
+RELAX_SWEEPS = 20
+#: ... and at most this many rings of X (the neighbourhoods' memory and time grow with the square
+#: of the rings: an X more than twice as fine as Y gets a smaller radius).
+RELAX_MAX_RINGS = 8
 #: The input meshes' eigenpairs from the working mesh's (:func:`prolonged_basis`): how many
 #: working eigenvectors per eigenpair wanted, and the subspace iterations on the input mesh.
 BASIS_GUARD, BASIS_ITERATIONS = 1.1, 1
@@ -810,6 +823,119 @@ def _input_images(sx, sy, T: np.ndarray):
     return face, bary, sy.input.faces[face, np.argmax(bary, axis=1)]
 
 
+def relax_isometric(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES, cap: float | None = RELAX_CAP,
+                    sweeps: int = RELAX_SWEEPS) -> np.ndarray:
+    r"""An input-vertex map X -> Y made locally isometric, by moves of one edge.
+
+    The stress of GMDS (Bronstein, Bronstein & Kimmel, PNAS 103, 2006) over the pairs of nearby
+    vertices only, with the Euclidean distance as their distance (on a smooth surface it is the
+    geodesic one to second order in their distance): each sweep moves the image of every input
+    vertex v of X, all at once (Jacobi: the result does not depend on the vertex order), to the
+    vertex w among its current image and that image's neighbours on Y's input mesh minimising
+
+    .. math:: E_v(w) = \sum_{u \in N(v)} \rho\big(s\,\lVert x_v - x_u \rVert
+              - \lVert y_w - y_{T(u)} \rVert\big),
+              \qquad s = \sqrt{A_Y / A_X},
+
+    :math:`N(v)` the vertices within r rings of v on X, r the rings that reach ``edges`` mean
+    edges of the coarser of the two meshes (X's edges scaled by s; at most
+    :data:`RELAX_MAX_RINGS`); :math:`\rho(e) = e^2`, or
+    :math:`\min(e^2, \kappa^2)` with :math:`\kappa` ``cap`` such edges (Blake & Zisserman,
+    *Visual Reconstruction*, 1987). A spectral refinement leaves slides of a few edges where its
+    eigenfunctions vary slowly (the ends of limbs, docs/design/dense.md); there the map
+    stretches one side of a neighbourhood and squeezes the other, which this energy sees.
+
+    Parameters
+    ----------
+    sx, sy : ShapeMetric or Mesh
+        Their input meshes are used (a Mesh is its own).
+    T : ndarray (n_X,) of int
+        Vertex of Y's input mesh (index) for each vertex of X's input mesh.
+    edges : float, default RELAX_EDGES
+    cap : float, optional
+        Default RELAX_CAP.
+    sweeps : int, default RELAX_SWEEPS
+        At most; they stop when no image moves.
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+    """
+    x, y = (getattr(s, "input", s) for s in (sx, sy))
+    T = np.asarray(T, dtype=np.int64)
+    if T.shape != (x.n_vertices,) or (len(T) and not 0 <= T.min() <= T.max() < y.n_vertices):
+        raise ValueError(f"T must hold one vertex of Y (0..{y.n_vertices - 1}) per vertex of X, "
+                         f"shape ({x.n_vertices},)")
+    if not edges > 0:
+        raise ValueError(f"edges must be positive, got {edges!r}")
+    if cap is not None and not cap > 0:
+        raise ValueError(f"cap must be positive or None, got {cap!r}")
+    scale = np.sqrt(y.area / x.area)
+    hx, hy = x.mean_edge_length * scale, y.mean_edge_length
+    h = max(hx, hy)
+    rings = min(int(np.ceil(edges * h / hx - 1e-9)), RELAX_MAX_RINGS)
+    nptr, nids = ring_neighbourhoods(x, rings)
+    src = np.repeat(np.arange(x.n_vertices), np.diff(nptr))
+    dist = np.linalg.norm(x.vertices[src] - x.vertices[nids], axis=1) * scale
+    yptr, yids = ring_neighbourhoods(y, 1)
+    cap2 = np.inf if cap is None else float(cap * h) ** 2
+    return _relax(nptr, nids, dist, np.ascontiguousarray(y.vertices, dtype=np.float64), yptr, yids,
+                  T, cap2, int(sweeps))
+
+
+@njit(cache=True, nogil=True)
+def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
+    """Jacobi sweeps of :func:`relax_isometric` (``dist``: the scaled distances on X of the
+    pairs ``(v, nids[j])``, ``j`` in ``nptr[v]:nptr[v + 1]``). A vertex none of whose
+    neighbourhood's images moved in the last sweep keeps its image without being evaluated:
+    it would find the same one."""
+    n = T.shape[0]
+    T = T.copy()
+    new = T.copy()
+    moved_last = np.ones(n, np.bool_)
+    moved_now = np.zeros(n, np.bool_)
+    for _ in range(sweeps):
+        moved = 0
+        for v in range(n):
+            due = False
+            for j in range(nptr[v], nptr[v + 1]):   # v itself is in its neighbourhood
+                if moved_last[nids[j]]:
+                    due = True
+                    break
+            t = T[v]
+            new[v] = t
+            moved_now[v] = False
+            if not due:
+                continue
+            best = np.inf
+            arg = t
+            for jj in range(yptr[t], yptr[t + 1]):   # t and its neighbours, in index order
+                w = yids[jj]
+                c = 0.0
+                for j in range(nptr[v], nptr[v + 1]):
+                    u = nids[j]
+                    if u == v:
+                        continue
+                    q = T[u]
+                    d = np.sqrt((py[w, 0] - py[q, 0]) ** 2 + (py[w, 1] - py[q, 1]) ** 2
+                                + (py[w, 2] - py[q, 2]) ** 2)
+                    e = (dist[j] - d) ** 2
+                    c += e if e < cap2 else cap2
+                if c < best or (c == best and w == t):   # a tie keeps the current image
+                    best = c
+                    arg = w
+            if arg != t:
+                new[v] = arg
+                moved_now[v] = True
+                moved += 1
+        for v in range(n):
+            T[v] = new[v]
+            moved_last[v] = moved_now[v]
+        if moved == 0:
+            break
+    return T
+
+
 def _at_vertices(mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(face, bary)`` of vertices ``v`` of ``mesh`` as surface points: the first face
     around each, with the unit weight on its corner."""
@@ -897,7 +1023,8 @@ def _by_file_id(s, face, bary, vertex) -> DenseMap:
 
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
                local: int | None = None, keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
-               refine: str | None = DENSE_REFINE, choice: int | None = None) -> tuple[DenseMap, DenseMap]:
+               refine: str | None = DENSE_REFINE, choice: int | None = None,
+               relax: bool | None = None) -> tuple[DenseMap, DenseMap]:
     """Dense maps X -> Y and Y -> X from paired landmarks.
 
     Parameters
@@ -923,6 +1050,9 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         each direction is also placed from each vertex's ``choice`` nearest landmarks; where the
         two placements differ (:func:`placements_agree`), both are refined and the one of lower
         ZoomOut energy kept (:func:`refine_better`). 0: the default placement alone.
+    relax : bool, optional
+        Default: :data:`DENSE_RELAX`, read at each call. With ``refine="input"``, each refined
+        map made locally isometric (:func:`relax_isometric`).
 
     Returns
     -------
@@ -954,6 +1084,7 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
             _input_rings(s, INPUT_RINGS)
 
     second = bool(choice) and not local and refine_input
+    relax = bool(DENSE_RELAX if relax is None else relax) and refine_input
 
     def one_way(a, b, t, da, db):
         face, bary, vertex = _input_images(a, b, t)
@@ -964,6 +1095,8 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
                 if not placements_agree(b, t, t2):
                     starts.append(_input_images(a, b, t2)[2])
             vertex = refine_better(a, b, starts)[0]   # one start: input_zoomout's map
+            if relax:
+                vertex = relax_isometric(a, b, vertex)
             face, bary = _at_vertices(b.input, vertex)
         if meshes and not a.working.source_kept.all():   # small pieces move with the surface
             vertex = place_small_pieces(a, b, vertex)

@@ -1,0 +1,123 @@
+"""The local isometry step after the dense refinement: which neighbourhood, which cap.
+
+Run:  .venv/bin/python benchmarks/studies/probe_dense_relax.py --remeshed R [--data DIR]
+          [--sets topkids,remeshed,perturbed] [--json benchmarks/studies/probe_dense_relax.json]
+
+R is the folder ``benchmarks/remesh.py --out R`` fills. On the pairs of ``bench_dense.py`` (its
+functions: TOPKIDS kidXX -> kid00; TOSCA poses remeshed on their own and pose 0 at two densities;
+pose 0 against itself with 20 holes and with 3 welds, both ways) each pair is matched once with
+``gromov.match(X, Y, dense=True)`` as the package stands (``DENSE_RELAX`` off), and that input-vertex
+map is scored as it is and after :func:`gromov.dense.relax_isometric` with each variant: the
+neighbourhood's radius ``edges`` (mean edges of the coarser mesh) and the cap of a residual
+(None: plain squares; else in the same unit). Error x 100 / sqrt(area) by
+:func:`gromov.evaluate.dense_error` (the better of direct and mirrored) on the same ``--points``
+random vertices of X (seeded) for every variant, the mean per map; per set the mean of the maps'
+means, and how many maps each variant makes worse than the refined map.
+No pyFM run: the anchor is in ``bench_dense.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_dense as B  # noqa: E402
+from _common import add_data_argument, write_results  # noqa: E402
+
+import gromov  # noqa: E402
+from gromov.dense import relax_isometric  # noqa: E402
+
+#: (edges, cap): the variants scored on every map.
+VARIANTS = ((3, None), (4, None), (5, None), (3, 3), (4, 4), (5, 5))
+
+
+def scorer(rows: list, points: int):
+    """An ``evaluate_pair`` for bench_dense's ``run_*`` functions that scores our map and its
+    relaxed variants (appended to ``rows``) on ``points`` random vertices of X with a truth."""
+    def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
+        r = gromov.match(x, yref, dense=True)
+        T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
+        tr = truth[x.input_ids]
+        ok = np.flatnonzero(tr >= 0)
+        if len(ok) > points:
+            ok = np.sort(np.random.default_rng(0).choice(ok, points, replace=False))
+
+        def error(t):
+            face, bary = B.at_vertices(y, t[ok])
+            return 100 * B.dense_error(face, bary, y, tr[ok], sym, fmm=fmm).mean
+
+        row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
+        for edges, cap in VARIANTS:
+            key = f"edges {edges}, cap {cap}"
+            t = time.perf_counter()
+            relaxed = relax_isometric(x, y, T, edges=edges, cap=cap)
+            row["seconds"][key] = time.perf_counter() - t
+            row["variants"][key] = error(relaxed)
+        rows.append(row)
+        print(f"  {name:<28} refined {row['refined']:.3f}  "
+              + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
+        return row
+    return evaluate_pair
+
+
+def summary(rows: list) -> dict:
+    out = {"maps": len(rows), "refined": float(np.mean([r["refined"] for r in rows]))}
+    for key in rows[0]["variants"]:
+        vals = np.array([r["variants"][key] for r in rows])
+        base = np.array([r["refined"] for r in rows])
+        out[key] = {"mean": float(vals.mean()), "worse": int(np.sum(vals > base + 1e-9)),
+                    "seconds_mean": float(np.mean([r["seconds"][key] for r in rows]))}
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_data_argument(ap)
+    ap.add_argument("--remeshed", required=True, help="the folder benchmarks/remesh.py --out filled")
+    ap.add_argument("--sets", default="topkids,remeshed,perturbed")
+    ap.add_argument("--points", type=int, default=2000, help="vertices of X scored per map")
+    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_relax.json"))
+    args = ap.parse_args(argv)
+    data, folder = Path(args.data), Path(args.remeshed)
+    classes = list(B.TOSCA_PAIRS)
+    out = {"variants": [list(v) for v in VARIANTS], "points": args.points, "sets": {}}
+    for name in args.sets.split(","):
+        rows: list = []
+        B.evaluate_pair = scorer(rows, args.points)
+        B.summarise = lambda *a, **k: {}
+        B._rows_for_json = lambda r: r
+        print(name, flush=True)
+        if name == "topkids":
+            B.run_topkids(data, 25)
+            parts = {"topkids": rows}
+        elif name == "remeshed":
+            B.run_remeshed(data, folder, classes)
+            parts = {"poses": [r for r in rows if "-" not in r["pair"].split("->")[0]],
+                     "densities": [r for r in rows if "-" in r["pair"].split("->")[0]]}
+        elif name == "perturbed":
+            B.run_perturbed(folder, classes)
+            parts = {"holes": [r for r in rows if "holes" in r["pair"]],
+                     "welds": [r for r in rows if "weld" in r["pair"]]}
+        else:
+            ap.error(f"unknown set {name!r}")
+        for part, part_rows in parts.items():
+            # (bench_dense adds the exact map's per-vertex errors to a density pair's row)
+            part_rows = [{k: v for k, v in r.items() if k != "exact_vertex"} for r in part_rows]
+            out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
+            s = out["sets"][part]["summary"]
+            print(f"{part}: refined {s['refined']:.3f}  " + "  ".join(
+                f"{k}: {v['mean']:.3f} ({v['worse']} worse)" for k, v in s.items() if isinstance(v, dict)),
+                flush=True)
+    write_results(args.json, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
