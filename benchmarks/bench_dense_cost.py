@@ -67,7 +67,7 @@ def main(argv=None) -> int:
             if "cached" not in name:
                 for s in (sx, sy):
                     assert s.for_correspondence() is s
-                    s._input_basis = s._input_rings = None
+                    s._input_basis = s._input_rings = s._relax_rings = None
             gromov.dense.DENSE_RELAX = name.startswith("relaxed")
             try:
                 t = time.perf_counter()

@@ -721,3 +721,21 @@ def test_relax_sharpens_a_real_refined_map(data_dir):
         errors.append(dense_error(f, bary, b, ids).mean)
     assert np.mean(relaxed == ids) > np.mean(refined == ids) + 0.03
     assert errors[1] < 0.8 * errors[0]
+
+
+def test_relax_neighbourhoods_are_kept_per_shape(monkeypatch):
+    """X's neighbourhoods are built once per shape and ring count: a second relaxation of the
+    same shape builds none and gives the same map."""
+    import gromov.dense as dense
+    from gromov.gh import ShapeMetric
+
+    x = bumpy_torus()
+    sx, sy = (ShapeMetric(m, "diffusion", resolution=300) for m in (x, bumpy_torus()))
+    ptr, nbr = dense.ring_neighbourhoods(x, 1)
+    shaken = nbr[ptr[:-1] + np.random.default_rng(2).integers(0, np.diff(ptr))]
+    first = dense.relax_isometric(sx, sy, shaken)
+    built = []
+    real = dense.ring_neighbourhoods
+    monkeypatch.setattr(dense, "ring_neighbourhoods", lambda m, r: built.append(r) or real(m, r))
+    np.testing.assert_array_equal(dense.relax_isometric(sx, sy, shaken), first)
+    assert built == [1]   # Y's one ring only

@@ -874,13 +874,27 @@ def relax_isometric(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES, cap: f
     hx, hy = x.mean_edge_length * scale, y.mean_edge_length
     h = max(hx, hy)
     rings = min(int(np.ceil(edges * h / hx - 1e-9)), RELAX_MAX_RINGS)
-    nptr, nids = ring_neighbourhoods(x, rings)
-    src = np.repeat(np.arange(x.n_vertices), np.diff(nptr))
-    dist = np.linalg.norm(x.vertices[src] - x.vertices[nids], axis=1) * scale
+    nptr, nids, lengths = _relax_neighbourhoods(sx, x, rings)
+    dist = lengths * scale
     yptr, yids = ring_neighbourhoods(y, 1)
     cap2 = np.inf if cap is None else float(cap * h) ** 2
     return _relax(nptr, nids, dist, np.ascontiguousarray(y.vertices, dtype=np.float64), yptr, yids,
                   T, cap2, int(sweeps))
+
+
+def _relax_neighbourhoods(s, mesh, rings: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(indptr, ids, lengths)``: :func:`ring_neighbourhoods` of ``mesh`` and the distance from
+    each vertex to each of its neighbours; kept on ``s`` where it is a ShapeMetric (per shape,
+    not per pair: the rings depend on the pair only through the ratio of the edge lengths)."""
+    cached = getattr(s, "_relax_rings", None)
+    if cached is not None and cached[0] == rings:
+        return cached[1]
+    nptr, nids = ring_neighbourhoods(mesh, rings)
+    src = np.repeat(np.arange(mesh.n_vertices), np.diff(nptr))
+    out = (nptr, nids, np.linalg.norm(mesh.vertices[src] - mesh.vertices[nids], axis=1))
+    if hasattr(s, "_relax_rings"):
+        s._relax_rings = (rings, out)
+    return out
 
 
 @njit(cache=True, nogil=True)

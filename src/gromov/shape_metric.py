@@ -92,6 +92,7 @@ class ShapeMetric:
         self._lb_basis = None   # Laplace-Beltrami eigenpairs of the working mesh (gromov.dense)
         self._input_basis = None   # ... and of the input mesh
         self._input_rings = None   # (rings, CSR): each input vertex's neighbourhood (gromov.dense)
+        self._relax_rings = None   # (rings, CSR, lengths): the local isometry step's (gromov.dense)
         self._same_as_input: bool | None = None
         self._normals: tuple[np.ndarray, bool] | None = None
         self._curvature: np.ndarray | None = None
