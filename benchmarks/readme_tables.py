@@ -145,9 +145,9 @@ def anchors_table() -> str:
     big = max(fps["rows"], key=lambda row: row["points"])
     tosca = load("dense_tosca.json")["tosca"]
     td, tt = dense["topkids"]["summary"], tosca["summary"]
-    rem = load("dense_remeshed.json")["remeshed"]
+    rem = dense["remeshed"]
     tr, tdn = rem["summary"], rem["density"]["summary"]
-    pert = load("dense_perturbed.json")["perturbed"]
+    pert = dense["perturbed"]
     rows = [
         "| task | gromov | anchor |",
         "|---|---|---|",
@@ -496,14 +496,14 @@ def benchmark_tables() -> list[tuple[str, str]]:
     """Every benchmark table of docs/benchmarks.md, each with the results file it reads."""
     f, m = load("foundation.json"), load("match.json")
     dense, placed = load("dense.json"), load("dense-placed.json")
-    remeshed = load("dense_remeshed.json")["remeshed"]
+    remeshed = dense["remeshed"]
     return [("foundation.json", foundation_table(f)), ("foundation.json", foundation_steps(f)),
             ("match.json", match_table(m)), ("match.json", match_speed(m)),
             ("dense.json, dense-placed.json", dense_table(dense["topkids"]["summary"], placed["topkids"]["summary"])),
             ("dense_tosca.json", dense_table(load("dense_tosca.json")["tosca"]["summary"])),
-            ("dense_remeshed.json", dense_table(remeshed["summary"])),
-            ("dense_remeshed.json", dense_table(remeshed["density"]["summary"])),
-            ("dense_perturbed.json", perturbed_table(load("dense_perturbed.json")["perturbed"])),
+            ("dense.json", dense_table(remeshed["summary"])),
+            ("dense.json", dense_table(remeshed["density"]["summary"])),
+            ("dense.json", perturbed_table(dense["perturbed"])),
             ("cloud_sampling.json", cloud_sampling_table(load("cloud_sampling.json"))),
             ("point_clouds.json", point_clouds_table(load("point_clouds.json"))),
             ("speed.json", speed_table(load("speed.json"))),

@@ -242,12 +242,12 @@ def test_anchor_table_is_the_results_files():
     assert (f"| {s['ours_dense']['mean']:.2f}; {s['ours_dense']['median']:.2f} | {s['pyfm_dense']['mean']:.2f}; "
             f"{s['pyfm_dense']['median']:.2f} (pyFM) |") in rows[5], rows[5]
     assert len(tosca["classes"]) == 8 and len(tosca["pairs"]) == 16 and "16 clean TOSCA pairs (8 classes)" in rows[5]
-    rem = _json("dense_remeshed.json")["remeshed"]
+    rem = _json("dense.json")["remeshed"]
     s = rem["summary"]
     assert (f"| {s['ours_dense']['mean']:.2f}; {s['ours_dense']['median']:.2f} | {s['pyfm_dense']['mean']:.2f}; "
             f"{s['pyfm_dense']['median']:.2f} (pyFM) |") in rows[6], rows[6]
     assert len(rem["classes"]) == 8 and len(rem["pairs"]) == 16 and "16 TOSCA pairs each remeshed" in rows[6]
-    holes = _json("dense_perturbed.json")["perturbed"]["holes"]["summary"]["ours_dense"]
+    holes = _json("dense.json")["perturbed"]["holes"]["summary"]["ours_dense"]
     density = rem["density"]["summary"]["ours_dense"]
     assert f"| {density['mean']:.2f}, {density['median']:.2f}; {holes['mean']:.2f}, {holes['median']:.2f};" in rows[7]
     big = _json("cloud_sampling.json")["rows"][-1]
@@ -366,11 +366,11 @@ def test_dense_tables_are_the_results_files():
         assert f"placed only (`--dense placed`) | {r['mean']:.2f} | {r['median']:.2f} |" in page
     r = _json("dense_tosca.json")["tosca"]["summary"]["pyfm_dense"]
     assert f"| pyFM, dense | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} | {r['gross']} |" in page
-    rem = _json("dense_remeshed.json")["remeshed"]
+    rem = _json("dense.json")["remeshed"]
     for summary in (rem["summary"], rem["density"]["summary"]):
         r = summary["ours_dense"]
         assert f"| **ours, dense** | {r['mean']:.2f} | {r['median']:.2f} | {r['mean_direct']:.2f} |" in page
-    pert = _json("dense_perturbed.json")["perturbed"]
+    pert = _json("dense.json")["perturbed"]
     for kind in ("holes", "weld"):
         r, q = pert[kind]["to_clean"]["ours_dense"], pert[kind]["to_clean"]["pyfm_dense"]
         assert f"| with {kind} → without | {r['mean']:.2f} | {r['median']:.2f} | {q['mean']:.2f} |" in page

@@ -89,7 +89,7 @@ ZOOMOUT_START, ZOOMOUT_END, ZOOMOUT_STEP = 20, 60, 4
 INPUT_START, INPUT_K, INPUT_STEP, INPUT_RINGS, INPUT_GLOBAL = 20, 180, 4, 2, 32
 #: After the refinement on the input meshes, each map made locally isometric
 #: (:func:`relax_isometric`); docs/design/dense.md, "Local isometry after the refinement".
-DENSE_RELAX = False
+DENSE_RELAX = True
 #: :func:`relax_isometric`: the neighbourhood's radius in mean edges of the coarser mesh; the cap
 #: of a residual in the same unit, the radius itself (a residual beyond it is no slide within the
 #: neighbourhood: a weld or a glued contact); the sweeps at most.
@@ -902,12 +902,17 @@ def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
     """Jacobi sweeps of :func:`relax_isometric` (``dist``: the scaled distances on X of the
     pairs ``(v, nids[j])``, ``j`` in ``nptr[v]:nptr[v + 1]``). A vertex none of whose
     neighbourhood's images moved in the last sweep keeps its image without being evaluated:
-    it would find the same one."""
+    it would find the same one. The neighbours' images are gathered once per vertex, and a
+    candidate's sum stops once it exceeds the best (its terms are not negative)."""
     n = T.shape[0]
     T = T.copy()
     new = T.copy()
     moved_last = np.ones(n, np.bool_)
     moved_now = np.zeros(n, np.bool_)
+    m = 0
+    for v in range(n):
+        m = max(m, nptr[v + 1] - nptr[v])
+    bx, by, bz, bd, be = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     for _ in range(sweeps):
         moved = 0
         for v in range(n):
@@ -921,20 +926,28 @@ def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
             moved_now[v] = False
             if not due:
                 continue
+            k = 0
+            for j in range(nptr[v], nptr[v + 1]):
+                u = nids[j]
+                if u == v:
+                    continue
+                q = T[u]
+                bx[k], by[k], bz[k], bd[k] = py[q, 0], py[q, 1], py[q, 2], dist[j]
+                k += 1
             best = np.inf
             arg = t
             for jj in range(yptr[t], yptr[t + 1]):   # t and its neighbours, in index order
                 w = yids[jj]
+                wx, wy, wz = py[w, 0], py[w, 1], py[w, 2]
+                for i in range(k):
+                    d = np.sqrt((wx - bx[i]) ** 2 + (wy - by[i]) ** 2 + (wz - bz[i]) ** 2)
+                    e = (bd[i] - d) ** 2
+                    be[i] = e if e < cap2 else cap2
                 c = 0.0
-                for j in range(nptr[v], nptr[v + 1]):
-                    u = nids[j]
-                    if u == v:
-                        continue
-                    q = T[u]
-                    d = np.sqrt((py[w, 0] - py[q, 0]) ** 2 + (py[w, 1] - py[q, 1]) ** 2
-                                + (py[w, 2] - py[q, 2]) ** 2)
-                    e = (dist[j] - d) ** 2
-                    c += e if e < cap2 else cap2
+                for i in range(k):
+                    c += be[i]
+                    if c > best:
+                        break
                 if c < best or (c == best and w == t):   # a tie keeps the current image
                     best = c
                     arg = w

@@ -160,8 +160,9 @@ def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", s
         The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
     dense : bool, "input", "zoomout" or "placed", default False
         Also map every input vertex (:mod:`gromov.dense`). True or "input": placed from the
-        samples, then refined by ZoomOut on the input meshes; "zoomout": refined on the
-        working meshes instead; "placed": not refined.
+        samples, refined by ZoomOut on the input meshes, then made locally isometric
+        (:data:`gromov.dense.DENSE_RELAX`); "zoomout": refined on the working meshes instead;
+        "placed": not refined.
     partial : bool, default False
         X is a part of Y (given, not detected): only X's samples are embedded into Y, the
         part measured in Y's metric, samples near X's boundary down-weighted; the result also

@@ -187,8 +187,9 @@ def _match_parser(sub) -> None:
     q.add_argument("--dense", nargs="?", const="input", choices=("input", "zoomout", "placed"), default=None,
                    help="also map every vertex: an image on Y for each vertex of X and on X for "
                         "each vertex of Y (x_to_y_dense_vertex/face/bary and y_to_x_dense_* in --out), "
-                        "placed by its distances to the samples and refined by ZoomOut on the input "
-                        "meshes; '--dense zoomout': refined on the working meshes instead; "
+                        "placed by its distances to the samples, refined by ZoomOut on the input "
+                        "meshes and made locally isometric; '--dense zoomout': refined on the "
+                        "working meshes instead; "
                         "'--dense placed': without a refinement")
     q.add_argument("--map", default=None, metavar="FILE.txt",
                    help="write the dense X -> Y vertex map: one 1-based vertex id of Y per vertex "
