@@ -6,7 +6,7 @@ Run:  .venv/bin/python benchmarks/studies/probe_dense_relax.py --remeshed R [--d
 R is the folder ``benchmarks/remesh.py --out R`` fills. On the pairs of ``bench_dense.py`` (its
 functions: TOPKIDS kidXX -> kid00; TOSCA poses remeshed on their own and pose 0 at two densities;
 pose 0 against itself with 20 holes and with 3 welds, both ways) each pair is matched once with
-``gromov.match(X, Y, dense=True)`` as the package stands (``DENSE_RELAX`` off), and that input-vertex
+``gromov.match(X, Y, dense=True)`` with ``gromov.dense.DENSE_RELAX`` set off, and that input-vertex
 map is scored as it is and after :func:`gromov.dense.relax_isometric` with each variant: the
 neighbourhood's radius ``edges`` (mean edges of the coarser mesh) and the cap of a residual
 (None: plain squares; else in the same unit). Error x 100 / sqrt(area) by
@@ -32,6 +32,7 @@ import bench_dense as B  # noqa: E402
 from _common import add_data_argument, write_results  # noqa: E402
 
 import gromov  # noqa: E402
+import gromov.dense  # noqa: E402
 from gromov.dense import relax_isometric  # noqa: E402
 
 #: (edges, cap): the variants scored on every map.
@@ -42,7 +43,11 @@ def scorer(rows: list, points: int):
     """An ``evaluate_pair`` for bench_dense's ``run_*`` functions that scores our map and its
     relaxed variants (appended to ``rows``) on ``points`` random vertices of X with a truth."""
     def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
-        r = gromov.match(x, yref, dense=True)
+        relax, gromov.dense.DENSE_RELAX = gromov.dense.DENSE_RELAX, False   # the refined map
+        try:
+            r = gromov.match(x, yref, dense=True)
+        finally:
+            gromov.dense.DENSE_RELAX = relax
         T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
         tr = truth[x.input_ids]
         ok = np.flatnonzero(tr >= 0)
