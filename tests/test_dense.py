@@ -473,6 +473,19 @@ def test_ring_neighbourhoods_grow_by_one_edge_per_ring():
     ptr, ids = ring_neighbourhoods(m, 2)
     two = set(ids[ptr[12]:ptr[13]])
     assert one < two and two == set().union(*(set(m.adjacency[v].indices) | {v} for v in one))
+    # every vertex, many rings (lists longer than the short-list sort): the powers of the
+    # adjacency matrix with the identity, each list sorted
+    import scipy.sparse as sp
+
+    m = grid(15, 15)
+    a = (m.adjacency + sp.identity(m.n_vertices, format="csr")).astype(bool).astype(int)
+    for rings in (1, 3, 6):
+        ptr, ids = ring_neighbourhoods(m, rings)
+        reach = (a ** rings).tocsr()
+        reach.sort_indices()
+        assert rings < 6 or np.diff(ptr).max() > 64
+        np.testing.assert_array_equal(ptr, reach.indptr)
+        np.testing.assert_array_equal(ids, reach.indices)
     with pytest.raises(ValueError, match="rings must be non-negative"):
         ring_neighbourhoods(m, -1)
 
@@ -615,8 +628,9 @@ def test_prolonged_eigenpairs_bound_the_true_ones_and_converge_to_them():
 
 def test_the_two_input_bases_computed_at_once_are_the_sequential_ones(monkeypatch, tmp_path):
     """``_input_bases``: with both shapes' input eigenpairs missing and two cores free, Y's are
-    computed in a forked process (which reports its pid here) while X's are computed in this
-    one; both equal, bit for bit, what the sequential computation gives."""
+    computed in a forked process (which reports its pid here) while ``meanwhile`` and X's are
+    computed in this one; both equal, bit for bit, what the sequential computation gives, and
+    ``meanwhile``'s result comes back either way."""
     import os
 
     import gromov.dense as dense
@@ -638,12 +652,15 @@ def test_the_two_input_bases_computed_at_once_are_the_sequential_ones(monkeypatc
     monkeypatch.setattr(dense, "prolonged_basis", spy)
     monkeypatch.setattr(dense, "_may_fork", lambda: True)
     sx, sy = pair()
-    dense._input_bases(sx, sy, 30)
+    calls = []
+    assert dense._input_bases(sx, sy, 30, meanwhile=lambda: calls.append(os.getpid()) or "placed") == "placed"
+    assert calls == [os.getpid()]   # once, here
     pids = {p.name for p in tmp_path.iterdir()}
     assert f"pid{os.getpid()}" in pids and len(pids) == 2   # one solve here, one in a child
     monkeypatch.setattr(dense, "_may_fork", lambda: False)
     rx, ry = pair()
-    dense._input_bases(rx, ry, 30)
+    assert dense._input_bases(rx, ry, 30, meanwhile=lambda: calls.append(0) or "placed") == "placed"
+    assert calls == [os.getpid(), 0]
     for a, b in ((sx, rx), (sy, ry)):
         assert a._input_basis[0].shape == (m.n_vertices, 30)
         np.testing.assert_array_equal(a._input_basis[0], b._input_basis[0])

@@ -538,15 +538,17 @@ def _may_fork() -> bool:
             and "fork" in mp.get_all_start_methods())
 
 
-def _input_bases(sx, sy, k: int) -> None:
-    """Both shapes' input eigenpairs (:func:`_input_basis`), once per shape. Where both are
-    missing and two cores are there, Y's are computed in a forked process while X's are
-    computed here: the shift-invert Lanczos of each holds the GIL (threads would take turns),
-    and the two solves are about half the dense maps' time on two 28k-vertex meshes. The child
-    runs the same code on the same data with one BLAS thread, so the eigenpairs are those of a
-    sequential run."""
+def _input_bases(sx, sy, k: int, meanwhile=None):
+    """Both shapes' input eigenpairs (:func:`_input_basis`), once per shape, and the result of
+    ``meanwhile()`` (None if not given), called first. Where both are missing and two cores are
+    there, Y's are computed in a forked process while ``meanwhile()`` and X's are computed here:
+    the shift-invert Lanczos of each holds the GIL (threads would take turns), and the two
+    solves are about half the dense maps' time on two 28k-vertex meshes. The child runs the
+    same code on the same data with one BLAS thread, so the eigenpairs are those of a sequential
+    run."""
     import multiprocessing as mp
 
+    result = None
     if sx is not sy and _needs_basis(sx, k) and _needs_basis(sy, k) and _may_fork():
         from concurrent.futures import ProcessPoolExecutor
 
@@ -555,28 +557,71 @@ def _input_bases(sx, sy, k: int) -> None:
         try:
             with ProcessPoolExecutor(1, mp_context=mp.get_context("fork")) as pool:
                 there = pool.submit(_forked_basis, 0, k)
+                if meanwhile is not None:
+                    result, meanwhile = meanwhile(), None
                 _input_basis(sx, k)
                 _input_basis(sy, k, there.result())
         finally:
             _FORKED = []
+    if meanwhile is not None:
+        result = meanwhile()
     for s in (sx, sy):
         _input_basis(s, k)
+    return result
 
 
 def ring_neighbourhoods(mesh, rings: int) -> tuple[np.ndarray, np.ndarray]:
     """CSR ``(indptr, ids)``: the vertices within ``rings`` edges of each vertex, itself
     included, sorted."""
-    import scipy.sparse as sp
-
     if rings < 0:
         raise ValueError(f"rings must be non-negative, got {rings!r}")
-    step = (mesh.adjacency + sp.identity(mesh.n_vertices, format="csr")).astype(bool).tocsr()
-    near = sp.identity(mesh.n_vertices, format="csr", dtype=bool)
-    for _ in range(int(rings)):
-        near = (near @ step).astype(bool)
-    near = near.tocsr()
-    near.sort_indices()
-    return near.indptr.astype(np.int64), near.indices.astype(np.int64)
+    adj = mesh.adjacency.tocsr()
+    return _rings(adj.indptr.astype(np.int64), adj.indices.astype(np.int64), int(rings))
+
+
+@njit(cache=True, nogil=True)
+def _rings(ptr, ids, rings):
+    """:func:`ring_neighbourhoods` of the graph ``(ptr, ids)`` (CSR adjacency), by a
+    breadth-first search of ``rings`` levels from each vertex."""
+    n = ptr.shape[0] - 1
+    seen = np.full(n, -1, np.int64)    # the last vertex whose search reached it
+    level = np.empty(n, np.int64)      # that search's vertices, level after level
+    out_ptr = np.zeros(n + 1, np.int64)
+    out = np.empty(max(4 * n, 1), np.int64)
+    for v in range(n):
+        seen[v] = v
+        level[0] = v
+        begin, end = 0, 1
+        for _ in range(rings):
+            stop = end
+            for q in range(begin, stop):
+                u = level[q]
+                for j in range(ptr[u], ptr[u + 1]):
+                    w = ids[j]
+                    if seen[w] != v:
+                        seen[w] = v
+                        level[end] = w
+                        end += 1
+            if end == stop:
+                break
+            begin = stop
+        start = out_ptr[v]
+        if start + end > out.shape[0]:
+            grown = np.empty(max(2 * out.shape[0], start + end), np.int64)
+            grown[:start] = out[:start]
+            out = grown
+        if end <= 64:   # insertion sort: no call for a short list
+            for q in range(end):
+                w = level[q]
+                i = start + q
+                while i > start and out[i - 1] > w:
+                    out[i] = out[i - 1]
+                    i -= 1
+                out[i] = w
+        else:
+            out[start:start + end] = np.sort(level[:end])
+        out_ptr[v + 1] = start + end
+    return out_ptr, out[:out_ptr[n]].copy()
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -604,9 +649,10 @@ def _nearest_in_rings(a, b, T, ptr, ids):
     return out
 
 
-def _nearest_rows(a: np.ndarray, b: np.ndarray, chunk: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+def _nearest_rows(a: np.ndarray, b: np.ndarray, chunk: int = 512) -> tuple[np.ndarray, np.ndarray]:
     """``(index, squared distance)`` of the row of ``b`` nearest to each row of ``a``, by
-    products, ``chunk`` rows of ``a`` at a time (``b`` has a few thousand rows)."""
+    products, ``chunk`` rows of ``a`` at a time (``b`` has a few thousand rows: a chunk's
+    products stay in cache while they are scaled, shifted and searched)."""
     bb = np.einsum("ij,ij->i", b, b)
     idx, d2 = np.empty(len(a), np.int64), np.empty(len(a), a.dtype)
     for s in range(0, len(a), chunk):
@@ -1094,21 +1140,24 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     choice = DENSE_CHOICE if choice is None else choice
     if not (isinstance(choice, (int, np.integer)) and choice >= 0):
         raise ValueError(f"choice must be a non-negative number of landmarks, got {choice!r}")
-    ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
-    ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
-    if local:
-        t_xy, t_yx = local_anchored_map(ax, ay, int(local)), local_anchored_map(ay, ax, int(local))
-    else:
-        t_xy = anchored_map(ax, ay, keep=keep, rounds=rounds)
-        t_yx = anchored_map(ay, ax, keep=keep, rounds=rounds)
+
+    def placed():   # the robust maps on the working meshes
+        ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
+        ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
+        if local:
+            return ax, ay, local_anchored_map(ax, ay, int(local)), local_anchored_map(ay, ax, int(local))
+        return ax, ay, anchored_map(ax, ay, keep=keep, rounds=rounds), anchored_map(ay, ax, keep=keep, rounds=rounds)
+
     meshes = sx.has_faces and sy.has_faces
-    if refine == "zoomout" and meshes:
-        t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)
     refine_input = refine == "input" and meshes
-    if refine_input:   # per shape, once: before the two directions share them
-        _input_bases(sx, sy, INPUT_K)
+    if refine_input:   # per shape, once, before the two directions share them; placed meanwhile
+        ax, ay, t_xy, t_yx = _input_bases(sx, sy, INPUT_K, meanwhile=placed)
         for s in (sx, sy):
             _input_rings(s, INPUT_RINGS)
+    else:
+        ax, ay, t_xy, t_yx = placed()
+    if refine == "zoomout" and meshes:
+        t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)
 
     second = bool(choice) and not local and refine_input
     relax = bool(DENSE_RELAX if relax is None else relax) and refine_input
