@@ -447,3 +447,21 @@ def test_two_stage_read_off_the_complete_matrix():
 def test_partial_benchmark_keeps_a_given_span():
     bp = _module("bench_partial")
     assert bp.keeps("holes", 3, (0.25, 0.4)) == pytest.approx([0.275, 0.325, 0.375])
+
+
+def test_eccentricity_study_quantiles_and_first_stage():
+    """The eccentricity study's weighted quantiles follow the weights, and a first stage equal to
+    the combined ranking holds every query's ten nearest at K = 10; a reversed one at none."""
+    st = _module("recognition_eccentricity")
+    v = np.array([3.0, 1.0, 2.0, 4.0])
+    q = st.weighted_quantiles(v, np.ones(4), np.array([0.25, 1.0]))
+    np.testing.assert_allclose(q, [1.0, 4.0])
+    even = st.weighted_quantiles(v, np.ones(4), np.array([0.5]))
+    heavy = st.weighted_quantiles(v, np.array([1.0, 1.0, 1.0, 97.0]), np.array([0.5]))
+    assert even[0] == 2.0 and 3.0 < heavy[0] < 4.0   # the median moves towards the heavy value
+    rng = np.random.default_rng(0)
+    x = rng.random((25, 3))
+    C = np.linalg.norm(x[:, None] - x[None], axis=2)
+    m = {"C": C, "S": C, "E": C.max() - C + np.eye(25)}
+    assert st.first_stage(m, {"S": 1}, ks=(10,))["K10"] == 1.0
+    assert st.first_stage(m, {"E": 1}, ks=(10,))["K10"] == 0.0
