@@ -306,6 +306,46 @@ def run_perturbed(folder: Path, classes: list[str]) -> dict:
     return out
 
 
+def study_sets(sets, data: Path, folder: Path | None, evaluate) -> dict[str, list[dict]]:
+    """The rows a study's own ``evaluate`` (called as :func:`evaluate_pair` is, returning its row)
+    gives on each of ``sets``, split into parts: ``topkids`` (kidXX -> kid00: part ``topkids``),
+    ``remeshed`` (the TOSCA pairs on ``folder``'s copies: ``poses``, and pose 0 at two densities:
+    ``densities``), ``perturbed`` (``holes`` and ``welds``). The benchmark's tables are not made;
+    the exact map's errors that this benchmark adds to a density row are left out."""
+    global evaluate_pair, summarise, _rows_for_json
+    saved = evaluate_pair, summarise, _rows_for_json
+    classes = list(TOSCA_PAIRS)
+    parts: dict[str, list[dict]] = {}
+    try:
+        summarise, _rows_for_json = (lambda *a, **k: {}), (lambda r: r)
+        for name in sets:
+            rows: list[dict] = []
+
+            def evaluate_pair(*a, rows=rows, **k):
+                rows.append(evaluate(*a, **k))
+                return rows[-1]
+
+            print(name, flush=True)
+            if name == "topkids":
+                run_topkids(data, 25)
+                split = {"topkids": rows}
+            elif name == "remeshed":
+                run_remeshed(data, folder, classes)
+                density = [r for r in rows if "-" in r["pair"].split("->")[0]]
+                split = {"poses": [r for r in rows if r not in density], "densities": density}
+            elif name == "perturbed":
+                run_perturbed(folder, classes)
+                split = {"holes": [r for r in rows if "holes" in r["pair"]],
+                         "welds": [r for r in rows if "weld" in r["pair"]]}
+            else:
+                raise ValueError(f"unknown set {name!r}")
+            parts.update({part: [{k: v for k, v in r.items() if k != "exact_vertex"} for r in part_rows]
+                          for part, part_rows in split.items()})
+    finally:
+        evaluate_pair, summarise, _rows_for_json = saved
+    return parts
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)

@@ -38,9 +38,9 @@ import gromov.dense  # noqa: E402
 WAYS = {"default": gromov.dense.INPUT_GLOBAL, "no global steps": 0}
 
 
-def scorer(rows: list, points: int):
-    """An ``evaluate_pair`` for bench_dense's ``run_*`` functions that matches each pair both ways
-    and scores them (rows appended to ``rows``)."""
+def scorer(points: int):
+    """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that matches each pair both
+    ways, scores them, and returns the row."""
     def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
         tr = truth[x.input_ids]
         ok = np.flatnonzero(tr >= 0)
@@ -65,7 +65,6 @@ def scorer(rows: list, points: int):
             if way == "default":
                 keep = truth[r.x_samples] >= 0
                 row["samples"] = error(r.x_to_y_face[keep], r.x_to_y_bary[keep], truth[s])
-        rows.append(row)
         print(f"  {name:<32} samples {row['samples']:.2f}  " + "  ".join(
             f"{w}: {row[w]['dense']:.2f} (at samples {row[w]['dense_at_samples']:.2f})" for w in WAYS), flush=True)
         return row
@@ -95,33 +94,21 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     data = Path(args.data)
     out = {"input_global": gromov.dense.INPUT_GLOBAL, "points": args.points, "sets": {}}
-    for name in args.sets.split(","):
-        rows: list = []
-        B.evaluate_pair = scorer(rows, args.points)
-        B.summarise = lambda *a, **k: {}
-        B._rows_for_json = lambda r: r
-        B.exact_vertex_error = lambda *a, **k: {"errors": np.zeros(1)}   # (run_remeshed pools it; not scored here)
-        print(name, flush=True)
-        if name == "topkids":
-            B.run_topkids(data, 25)
-            parts = {"topkids": rows}
-        elif name == "remeshed":
-            if not args.remeshed:
-                ap.error("the set 'remeshed' needs --remeshed R")
-            B.run_remeshed(data, Path(args.remeshed), list(B.TOSCA_PAIRS))
-            parts = {"poses": [r for r in rows if "-" not in r["pair"].split("->")[0]],
-                     "densities": [r for r in rows if "-" in r["pair"].split("->")[0]]}
-        else:
+    sets = args.sets.split(",")
+    for name in sets:
+        if name not in ("topkids", "remeshed"):
             ap.error(f"unknown set {name!r}")
-        for part, part_rows in parts.items():
-            part_rows = [{k: v for k, v in r.items() if k != "exact_vertex"} for r in part_rows]
-            out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
-            s = out["sets"][part]["summary"]
-            print(f"{part}: samples {s['samples']:.3f}  " + "  ".join(
-                f"{w}: {s[w]['dense']:.3f} (at samples {s[w]['dense_at_samples']:.3f}, above the samples: "
-                f"{s[w]['above_samples']})" for w in WAYS)
-                + f"; without, {s['no global steps']['worse']} maps worse, {s['no global steps']['better']} better",
-                flush=True)
+    if "remeshed" in sets and not args.remeshed:
+        ap.error("the set 'remeshed' needs --remeshed R")
+    parts = B.study_sets(sets, data, Path(args.remeshed) if args.remeshed else None, scorer(args.points))
+    for part, part_rows in parts.items():
+        out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
+        s = out["sets"][part]["summary"]
+        print(f"{part}: samples {s['samples']:.3f}  " + "  ".join(
+            f"{w}: {s[w]['dense']:.3f} (at samples {s[w]['dense_at_samples']:.3f}, above the samples: "
+            f"{s[w]['above_samples']})" for w in WAYS)
+            + f"; without, {s['no global steps']['worse']} maps worse, {s['no global steps']['better']} better",
+            flush=True)
     write_results(args.json, out)
     return 0
 

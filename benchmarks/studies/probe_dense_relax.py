@@ -39,9 +39,9 @@ from gromov.dense import relax_isometric  # noqa: E402
 VARIANTS = ((3, None), (4, None), (5, None), (3, 3), (4, 4), (5, 5))
 
 
-def scorer(rows: list, points: int):
-    """An ``evaluate_pair`` for bench_dense's ``run_*`` functions that scores our map and its
-    relaxed variants (appended to ``rows``) on ``points`` random vertices of X with a truth."""
+def scorer(points: int):
+    """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores our map and its
+    relaxed variants on ``points`` random vertices of X with a truth, and returns the row."""
     def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
         relax, gromov.dense.DENSE_RELAX = gromov.dense.DENSE_RELAX, False   # the refined map
         try:
@@ -65,7 +65,6 @@ def scorer(rows: list, points: int):
             relaxed = relax_isometric(x, y, T, edges=edges, cap=cap)
             row["seconds"][key] = time.perf_counter() - t
             row["variants"][key] = error(relaxed)
-        rows.append(row)
         print(f"  {name:<28} refined {row['refined']:.3f}  "
               + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
         return row
@@ -91,35 +90,17 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_relax.json"))
     args = ap.parse_args(argv)
     data, folder = Path(args.data), Path(args.remeshed)
-    classes = list(B.TOSCA_PAIRS)
     out = {"variants": [list(v) for v in VARIANTS], "points": args.points, "sets": {}}
     for name in args.sets.split(","):
-        rows: list = []
-        B.evaluate_pair = scorer(rows, args.points)
-        B.summarise = lambda *a, **k: {}
-        B._rows_for_json = lambda r: r
-        print(name, flush=True)
-        if name == "topkids":
-            B.run_topkids(data, 25)
-            parts = {"topkids": rows}
-        elif name == "remeshed":
-            B.run_remeshed(data, folder, classes)
-            parts = {"poses": [r for r in rows if "-" not in r["pair"].split("->")[0]],
-                     "densities": [r for r in rows if "-" in r["pair"].split("->")[0]]}
-        elif name == "perturbed":
-            B.run_perturbed(folder, classes)
-            parts = {"holes": [r for r in rows if "holes" in r["pair"]],
-                     "welds": [r for r in rows if "weld" in r["pair"]]}
-        else:
+        if name not in ("topkids", "remeshed", "perturbed"):
             ap.error(f"unknown set {name!r}")
-        for part, part_rows in parts.items():
-            # (bench_dense adds the exact map's per-vertex errors to a density pair's row)
-            part_rows = [{k: v for k, v in r.items() if k != "exact_vertex"} for r in part_rows]
-            out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
-            s = out["sets"][part]["summary"]
-            print(f"{part}: refined {s['refined']:.3f}  " + "  ".join(
-                f"{k}: {v['mean']:.3f} ({v['worse']} worse)" for k, v in s.items() if isinstance(v, dict)),
-                flush=True)
+    parts = B.study_sets(args.sets.split(","), data, folder, scorer(args.points))
+    for part, part_rows in parts.items():
+        out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
+        s = out["sets"][part]["summary"]
+        print(f"{part}: refined {s['refined']:.3f}  " + "  ".join(
+            f"{k}: {v['mean']:.3f} ({v['worse']} worse)" for k, v in s.items() if isinstance(v, dict)),
+            flush=True)
     write_results(args.json, out)
     return 0
 
