@@ -558,12 +558,12 @@ def _input_bases(sx, sy, k: int, meanwhile=None):
             with ProcessPoolExecutor(1, mp_context=mp.get_context("fork")) as pool:
                 there = pool.submit(_forked_basis, 0, k)
                 if meanwhile is not None:
-                    result, meanwhile = meanwhile(), None
+                    result = meanwhile()
                 _input_basis(sx, k)
                 _input_basis(sy, k, there.result())
         finally:
             _FORKED = []
-    if meanwhile is not None:
+    elif meanwhile is not None:
         result = meanwhile()
     for s in (sx, sy):
         _input_basis(s, k)
