@@ -3,7 +3,7 @@
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_recognition.py [--data DIR]
           [--collections tosca,watertight] [--per-class 6] [--shapes N] [--methods shapedna,hks,gromov,combined]
           [--jobs 2] [--seed 0] [--samples 100] [--resolution 3000] [--cache DIR]
-          [--combined-per-class N] [--combined-samples 50] [--candidates C]
+          [--combined-per-class N] [--combined-samples 50] [--candidates C [--k K]]
           [--json benchmarks/results/recognition.json]
 
 The collections (labels from the file names, ``cat10.off.gz`` -> ``cat``, ``chair07.off.gz`` ->
@@ -39,8 +39,9 @@ in one run:
   unit area; each pair ranked by S^0.35 G^0.65, S the Shape-DNA distance of the working meshes, G
   the trimmed distortion; docs/design/recognition.md, "Across collections"), on
   ``--combined-per-class`` shapes of each class (0: all); with ``--candidates C`` as a two-stage
-  search (``--candidates C``): only each shape's C nearest by S are matched, the other pairs
-  ranked after them by S, and no EER (not every pair is matched).
+  search (``--candidates C``): only each shape's C nearest by S are matched, with ``--k K``
+  then each shape's K nearest searched by neighbour descent (``gromov pairwise --candidates C
+  -k K``), the other pairs ranked after them by S, and no EER (not every pair is matched).
 
 ``--shapes N`` keeps at most N shapes of each collection for every method (spread over the
 classes as :func:`class_subset` spreads them), for a quick check.
@@ -322,7 +323,8 @@ def combined_matrix(files, args) -> dict:
         warnings.simplefilter("ignore", GromovWarning)
         g = gh_matrix([str(f) for f in files], "diffusion", n_samples=args.combined_samples,
                       resolution=args.resolution, metric_options={**GROMOV_METRIC, "units": "area"},
-                      seed=args.seed, jobs=args.jobs, spectral=True, candidates=args.candidates)
+                      seed=args.seed, jobs=args.jobs, spectral=True, candidates=args.candidates, k=args.k,
+                      rank_by="combined")
     wall = time.perf_counter() - t
     D = g.combined.copy()
     S = g.spectral
@@ -372,6 +374,8 @@ def main(argv=None) -> None:
     ap.add_argument("--combined-samples", type=int, default=50, help="method combined: samples per shape")
     ap.add_argument("--candidates", type=int, default=None, metavar="C",
                     help="method combined: match only each shape's C nearest by spectral distance")
+    ap.add_argument("--k", type=int, default=None, metavar="K",
+                    help="method combined, with --candidates: then each shape's K nearest by neighbour descent")
     ap.add_argument("--json", default=str(HERE / "results" / "recognition.json"))
     args = ap.parse_args(argv)
     colls = [c.strip() for c in args.collections.split(",") if c.strip()]
@@ -447,11 +451,12 @@ def main(argv=None) -> None:
             mc = len(csub)
             g = combined_matrix([files[i] for i in csub], args)
             if cache is not None:
-                np.savez(cache / f"combined-{name}-pc{per}-s{args.combined_samples}-c{args.candidates or 0}"
-                                 f"-seed{args.seed}.npz", files=np.array([files[i].name for i in csub]),
+                np.savez(cache / (f"combined-{name}-pc{per}-s{args.combined_samples}-c{args.candidates or 0}"
+                                  + (f"-k{args.k}" if args.k else "") + f"-seed{args.seed}.npz"), files=np.array([files[i].name for i in csub]),
                          combined=g["combined"], spectral=g["spectral"], trimmed=g["trimmed"], gh=g["gh"])
             row = (f"gromov --units area --samples {args.combined_samples} --rank-by combined"
-                   + (f" --candidates {args.candidates}" if args.candidates else ""))
+                   + (f" --candidates {args.candidates}" if args.candidates else "")
+                   + (f" -k {args.k}" if args.k else ""))
             sc = scores(g["combined"], labels[csub])
             if not g["complete"]:
                 sc["eer"] = None   # not every pair was matched: no EER

@@ -158,3 +158,39 @@ def test_search_a_store_in_two_stages(tmp_path, capsys):
                    for name in ("retrieval-bound-1:n_samples=15:seed=0",))
     assert main(argv) == 0
     assert json.loads(capsys.readouterr().out)["neighbors"] == res["neighbors"]
+
+
+def test_a_descent_round_adds_the_neighbours_of_the_neighbours():
+    from gromov.experiments.pairwise import _descent_pairs
+
+    # points on a line, ranked by their gaps; only neighbours along it matched
+    x = np.array([0.0, 1.0, 2.1, 3.3, 4.6, 6.0])
+    R = np.abs(x[:, None] - x[None])
+    n = len(x)
+    matched = np.eye(n, dtype=bool)
+    for i in range(n - 1):
+        matched[i, i + 1] = matched[i + 1, i] = True
+    # m = 1: each point's nearest is the one before it (the gaps grow), and that one's nearest
+    # the one before it again
+    assert _descent_pairs(R, matched, 1) == [(0, 2), (1, 3), (2, 4), (3, 5)]
+    # m = 2: every point two steps along, and nothing already matched
+    got = _descent_pairs(R, matched, 2)
+    assert got == [(0, 2), (1, 3), (2, 4), (3, 5)]
+    matched[0, 2] = matched[2, 0] = True
+    assert (0, 2) not in _descent_pairs(R, matched, 2)
+
+
+def test_two_stage_matrix_with_k_adds_the_descent_and_keeps_the_values():
+    shapes = [ShapeMetric(m, "geodesic", resolution=None) for m in _sheets()]
+    opts = dict(n_samples=15, jobs=1)
+    full = gh_matrix(shapes, "geodesic", spectral=True, **opts)
+    first = gh_matrix(shapes, "geodesic", candidates=1, **opts)
+    two = gh_matrix(shapes, "geodesic", candidates=1, k=1, rank_by="combined", **opts)
+    n = len(shapes)
+    was = ~np.isnan(first.trimmed)
+    now = ~np.isnan(two.trimmed)
+    assert (now >= was).all() and now.sum() > was.sum()   # the first stage, and more
+    assert two.skipped == n * (n - 1) // 2 - (now.sum() - n) // 2
+    np.testing.assert_array_equal(two.trimmed[now], full.trimmed[now])
+    with pytest.raises(ValueError, match="rank_by"):
+        gh_matrix(shapes, "geodesic", candidates=1, k=1, rank_by="distance", **opts)

@@ -64,11 +64,18 @@ def weighted_quantiles(values: np.ndarray, weights: np.ndarray, q: np.ndarray = 
     return np.interp(q, cum / cum[-1], values[order])
 
 
+def eccentricity_quantiles(s) -> np.ndarray:
+    """``E`` of a prepared shape: the quantiles of e(x) = sum_y a_y d(x, y) over its working
+    vertices under the area measure a."""
+    a = s.mesh.vertex_areas / s.mesh.vertex_areas.sum()
+    return weighted_quantiles(s.distances @ a, a)
+
+
 def signatures(s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(E quantiles, Dd quantiles, samples' distance matrix)`` of a prepared shape."""
     D = s.distances
     a = s.mesh.vertex_areas / s.mesh.vertex_areas.sum()
-    ecc = weighted_quantiles(D @ a, a)
+    ecc = eccentricity_quantiles(s)
     pick = np.random.default_rng(0).choice(len(a), min(PAIR_POINTS, len(a)), replace=False, p=a)
     dd = np.quantile(D[np.ix_(pick, pick)][np.triu_indices(len(pick), 1)], QUANTILES)
     samples = np.asarray(s.samples(SAMPLES, 0))
@@ -102,7 +109,7 @@ def matrices(data: Path, name: str, per_class: int, jobs: int) -> dict:
 
 def geometric(mats: dict, weights: dict) -> np.ndarray:
     """prod_k (M_k / median of its off-diagonal values)^w_k, zero diagonal."""
-    out = np.ones_like(mats["S"], dtype=float)
+    out = np.ones_like(mats[next(iter(weights))], dtype=float)
     off = ~np.eye(len(out), dtype=bool)
     for k, w in weights.items():
         if w:

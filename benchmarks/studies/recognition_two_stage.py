@@ -19,6 +19,14 @@ one, as ``bench_recognition.py`` ranks them) are brute force's, as a list (same 
 the time a two-stage run would take at the brute-force run's measured cost per pair and per shape.
 Also a rule that stops per query (:func:`adaptive`), simulated the same way.
 
+**First stages.** With ``--first-stages``, the same reading for other per-shape distances in
+place of S (:data:`FIRST_STAGES`): the eccentricity distributions E of each shape's working
+distances (``recognition_eccentricity.py``: the 1-D Wasserstein distance of 25 quantiles, in the
+metric of the matrix, unit-area heat distances; computed here, 10 shapes at a time, and kept in
+``DIR/eccentricity-<collection>.npz``), weighted geometric means of S and E, and the input
+meshes' Shape-DNA and pooled HKS of the benchmark. Their time adds the signatures' measured
+cost to the brute-force run's preparation. E then also joins the pair-local rankings.
+
 **Rankings of the complete matrix.** Nearest neighbour, first and second tier, EER (one threshold
 over all pairs; after local scaling beside it) and nearest neighbour per class, for the combined
 ranking, its two factors, the GH estimate and the two per-shape descriptors of the benchmark.
@@ -42,6 +50,7 @@ sys.path.insert(0, str(ROOT / "benchmarks" / "studies"))
 
 from bench_recognition import collection, euclidean, retrieval_scores, scores  # noqa: E402
 from recognition_defaults import objective, top_sets  # noqa: E402
+from recognition_eccentricity import eccentricity_quantiles, geometric  # noqa: E402
 
 from gromov.experiments.pairwise import _candidate_pairs  # noqa: E402
 
@@ -116,6 +125,93 @@ def adaptive(D: np.ndarray, S: np.ndarray, G: np.ndarray, w: float, top: int, fi
     return {"first": first, "quantile": q, "floor": g, **against_brute_force(D, S, matched, top, labels)}
 
 
+#: First stages compared (``--first-stages``): weighted geometric means of per-shape distances.
+FIRST_STAGES = {"S": {"spectral": 1.0}, "E": {"eccentricity": 1.0},
+                "S^0.65 E^0.35": {"spectral": 0.65, "eccentricity": 0.35},
+                "S^0.5 E^0.5": {"spectral": 0.5, "eccentricity": 0.5},
+                "S^0.35 E^0.65": {"spectral": 0.35, "eccentricity": 0.65},
+                "input Shape-DNA": {"dna_input": 1.0}, "input HKS": {"hks_input": 1.0},
+                "input HKS^0.5 E^0.5": {"hks_input": 0.5, "eccentricity": 0.5}}
+
+
+def eccentricity_matrix(cache: Path, data: str, name: str, jobs: int) -> tuple[np.ndarray, float]:
+    """``(E, seconds)``: the eccentricity distances between a collection's shapes, prepared as the
+    benchmark's combined run prepares them, and the seconds the signatures took past that
+    preparation (kept in ``cache``)."""
+    import time
+    import warnings
+
+    from bench_recognition import GROMOV_METRIC
+
+    from gromov.errors import GromovWarning
+    from gromov.experiments.pairwise import prepare
+
+    files, _ = collection(data, name)
+    path = cache / f"eccentricity-{name}.npz"
+    if path.exists():
+        z = np.load(path)
+        if [str(x) for x in z["files"]] == [f.name for f in files]:
+            sig, seconds = z["signatures"], float(z["seconds"])
+            return np.abs(sig[:, None] - sig[None]).mean(axis=2), seconds
+    seconds, sig = 0.0, []
+    for start in range(0, len(files), 10):   # 10 shapes' dense distances in memory at a time
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", GromovWarning)
+            shapes = prepare([str(f) for f in files[start:start + 10]], "diffusion", resolution=3000,
+                             metric_options={**GROMOV_METRIC, "units": "area"}, jobs=jobs)
+        t = time.perf_counter()   # the signatures only: the distances are the preparation's
+        sig += [eccentricity_quantiles(s) for s in shapes]
+        seconds += time.perf_counter() - t
+    sig = np.array(sig)
+    np.savez(path, files=np.array([f.name for f in files]), signatures=sig, seconds=seconds)
+    return np.abs(sig[:, None] - sig[None]).mean(axis=2), seconds
+
+
+def first_stages(M: dict, labels, candidates, top: int, row: dict | None = None,
+                 signature_seconds: float = 0.0) -> dict:
+    """Each of :data:`FIRST_STAGES` as the first stage, read off the complete matrix: per C, the
+    pairs, the queries whose ``top`` nearest are brute force's and, given the brute-force run's
+    ``row``, the estimated time (its preparation and cost per pair, plus ``signature_seconds``
+    for E)."""
+    out = {}
+    for name, weights in FIRST_STAGES.items():
+        P = geometric(M, weights)
+        extra = signature_seconds if "eccentricity" in weights else 0.0
+        out[name] = []
+        for c in candidates:
+            t = {"candidates": c, **against_brute_force(M["combined"], P, matched_by_candidates(P, c), top, labels)}
+            if row is not None:
+                per_pair = row["seconds_match"] / row["pairs_matched"]
+                t["estimated_seconds"] = row["seconds_prepare"] + extra + t["pairs"] * per_pair
+            out[name].append(t)
+    return out
+
+
+def descent(D: np.ndarray, S: np.ndarray, c: int, top: int, factor: float, labels) -> dict:
+    """``gh_matrix(candidates=c, k=top)``'s search read off the complete matrix ``D`` (the
+    ranking the descent follows): the first stage, then rounds of
+    :func:`gromov.experiments.pairwise._descent_pairs` with ``m = ceil(factor * top)`` until
+    one adds no pair."""
+    from gromov.experiments.pairwise import _descent_pairs
+
+    matched = matched_by_candidates(S, c)
+    m = min(int(np.ceil(factor * top)), len(D) - 1)
+    rounds = 0
+    while True:
+        new = _descent_pairs(np.where(matched, D, np.nan), matched, m)
+        if not new:
+            break
+        rounds += 1
+        for i, j in new:
+            matched[i, j] = matched[j, i] = True
+    return {"candidates": c, "top": top, "factor": factor, "m": m, "rounds": rounds,
+            **against_brute_force(D, S, matched, top, labels)}
+
+
+#: The neighbour descents read off each complete matrix (``--descent``): (top, factor, C).
+DESCENTS = [(top, f, c) for top in (5, 10, 20) for f in (1.0, 1.5, 2.0) for c in (top, 2 * top)]
+
+
 def per_class_nn(D: np.ndarray, labels) -> dict:
     r = retrieval_scores(0.5 * (D + D.T), labels)
     labels = np.asarray(labels)
@@ -150,7 +246,8 @@ def pair_local(mats: dict, labs: dict) -> list[dict]:
     from bench_recognition import pooled_scores
 
     rows = []
-    for sig in SIGNATURES:
+    present = [sig for sig in (*SIGNATURES, "eccentricity") if all(sig in m for m in mats.values())]
+    for sig in present:
         for stat in STATISTICS:
             for w in WEIGHTS:
                 if w == 0.0 and sig != SIGNATURES[0]:
@@ -173,6 +270,14 @@ def main(argv=None) -> None:
                     "scored with it for the pair-local rankings")
     ap.add_argument("--candidates", default="10,20,30,40,60,80")
     ap.add_argument("--top", type=int, default=10)
+    ap.add_argument("--first-stages", action="store_true", help="also other per-shape first stages (E: "
+                    "the shapes are prepared again)")
+    ap.add_argument("--jobs", type=int, default=2, help="processes preparing the shapes for E")
+    ap.add_argument("--descent", action="store_true", help="also the neighbour descent after the first stage, "
+                    "for each ranking of each collection (DESCENTS)")
+    ap.add_argument("--measured", default=None, type=Path, help="the cached matrix of a two-stage run of the "
+                    "collection (bench_recognition.py --candidates C [--k K] --cache DIR) and its results "
+                    "file, comma-separated: its queries' ten nearest against brute force's")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "recognition_two_stage.json"))
     args = ap.parse_args(argv)
     import os
@@ -205,7 +310,40 @@ def main(argv=None) -> None:
 
     res["adaptive"] = [adaptive(D, S, M["trimmed"], SPECTRUM_WEIGHT, args.top, first, q, labels)
                        for first in (args.top, 2 * args.top) for q in (0.0, 0.01, 0.05)]
+    if args.first_stages:
+        res["first_stages"], res["eccentricity_seconds"] = {}, {}
+        for c in names:   # times only for the collection of the brute-force run given
+            E, sec = eccentricity_matrix(args.cache, data, c, args.jobs)
+            res["eccentricity_seconds"][c] = sec
+            mats[c]["eccentricity"] = E
+            res["rankings"][c]["eccentricity"] = {**scores(E, labs[c]), "eer_local": eer_local(E, labs[c]),
+                                                  "nn_per_class": per_class_nn(E, labs[c])}
+            res["first_stages"][c] = first_stages(mats[c], labs[c], [int(x) for x in args.candidates.split(",")],
+                                                  args.top, row if c == args.collection else None, sec)
     res["pair_local"] = pair_local(mats, labs)
+    if args.descent:
+        res["descent"] = {}
+        for c in names:
+            res["descent"][c] = {}
+            for rank in ("combined", "trimmed", "gh"):
+                rows = [descent(mats[c][rank], mats[c]["spectral"], cc, top, f, labs[c]) for top, f, cc in DESCENTS]
+                if c == args.collection:
+                    for t in rows:
+                        t["estimated_seconds"] = row["seconds_prepare"] + t["pairs"] * per_pair
+                res["descent"][c][rank] = rows
+    if args.measured is not None:
+        npz, results = str(args.measured).split(",")
+        z = np.load(npz)
+        if [str(x) for x in z["files"]] != [str(x) for x in np.load(args.cache / f"combined-{args.collection}-pc0-s50-c0-seed0.npz")["files"]]:
+            raise SystemExit("the measured run is not of the same files in the same order")
+        two = np.asarray(z["combined"], dtype=np.float64)
+        matched = np.isfinite(np.asarray(z["trimmed"], dtype=np.float64))
+        run = json.loads(Path(results).read_text())
+        mrow = next(v for k, v in run["collections"][args.collection]["rows"].items() if k.startswith("gromov --units"))
+        same = bool(np.array_equal(two[matched], D[matched]))
+        res["measured"] = {"file": Path(results).name, "seconds": mrow["seconds"], "pairs_matched": mrow["pairs_matched"],
+                           "values_equal_brute_force": same,
+                           **against_brute_force(D, S, matched, args.top, labels)}
     Path(args.json).write_text(json.dumps(res, indent=1) + "\n")
     for c, m in res["rankings"].items():
         for k, s in m.items():
@@ -218,6 +356,22 @@ def main(argv=None) -> None:
     for t in res["adaptive"]:
         print(f"adaptive, first {t['first']}, floor q {t['quantile']}: {t['pairs']} pairs, top-{args.top} equal "
               f"{t['top_equal_list']:.3f}, NN {t['nn']:.3f}")
+    for c, ranks in res.get("descent", {}).items():
+        for rank, rows in ranks.items():
+            for t in rows:
+                print(f"{c} descent ({rank}) top {t['top']} m {t['m']} C {t['candidates']}: {t['rounds']} rounds, "
+                      f"{t['pairs']} pairs, top equal {t['top_equal_list']:.3f} ({t['queries_differing']} differ)"
+                      + (f", est. {t['estimated_seconds'] / 60:.1f} min" if "estimated_seconds" in t else ""))
+    if "measured" in res:
+        t = res["measured"]
+        print(f"measured {t['file']}: {t['pairs_matched']} pairs in {t['seconds'] / 60:.1f} min, top-{args.top} equal "
+              f"{t['top_equal_list']:.3f} ({t['queries_differing']} differ), values as brute force's: "
+              f"{t['values_equal_brute_force']}")
+    for c, stages in res.get("first_stages", {}).items():
+        for name, rows in stages.items():
+            print(f"{c} first stage {name}: " + "  ".join(
+                f"C {t['candidates']} {t['top_equal_list']:.3f}"
+                + (f" ({t['estimated_seconds'] / 60:.1f} min)" if "estimated_seconds" in t else "") for t in rows))
     for r in res["pair_local"][:12]:
         per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
         print(f"J {r['pooled']['J']:.4f}  {r['signature'] or '-':<10} {r['statistic']:<8} w {r['w']:.2f}  {per}")

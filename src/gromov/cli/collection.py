@@ -492,7 +492,7 @@ def _pairwise_matrix(args, files: list, loaded: dict, store, options: dict, dask
                          metric_options=options, seed=args.seed, jobs=args.jobs or available_cpus(),
                          progress=not (args.quiet or args.json), rank_tau_scale=args.rank_tau_scale,
                          rank_residual=args.rank_residual, store=store, client=client, k=args.k,
-                         candidates=args.candidates, spectral=args.rank_by == "combined")
+                         candidates=args.candidates, spectral=args.rank_by == "combined", rank_by=args.rank_by)
 
 
 def _failing_shapes(args, files: list, loaded: dict, options: dict) -> dict:
@@ -568,8 +568,10 @@ def _pairwise_parser(sub) -> None:
     q.add_argument("--candidates", type=_positive_int, default=None, metavar="C",
                    help="a two-stage search: match only the pairs in which one shape is among the "
                         "other's C nearest by spectral distance (Shape-DNA, one eigendecomposition "
-                        "per shape); the others are empty (NaN); no equal error rate or MDS map; "
-                        "refused with --dask or --scheduler")
+                        "per shape); with -k K, then the pairs of each shape with the 1.5 K nearest "
+                        "of its 1.5 K nearest found, in rounds until none is new (neighbour "
+                        "descent; C = 2 K is a good choice); the others are empty (NaN); no equal "
+                        "error rate or MDS map; refused with --dask or --scheduler")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--store", default=None, metavar="DIR",
                    help="shape store (gromov index): read each shape's metric from it or add it, "

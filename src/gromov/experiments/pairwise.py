@@ -375,7 +375,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
               metric_options: dict | None = None, seed: int = 0, jobs: int = 1, progress: bool = False,
               keep=(), known: dict | None = None, rank_tau_scale: float | None = RANK_TAU_SCALE,
               rank_residual: str = RANK_RESIDUAL, store=None, client=None, k: int | None = None,
-              candidates: int | None = None, spectral: bool = False, **match_options) -> PairwiseGH:
+              candidates: int | None = None, spectral: bool = False, rank_by: str = "trimmed",
+              **match_options) -> PairwiseGH:
     """GH distances between all pairs of ``shapes``.
 
     Parameters
@@ -435,12 +436,20 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     candidates : int, optional
         A two-stage search: only the pairs in which one shape is among the other's
         ``candidates`` nearest by spectral distance (``spectral``) are matched, all of them; the
-        others are NaN and counted in ``skipped``. With ``k`` too, the k nearest are read
-        from those (``k`` then prunes nothing). Not with ``client``.
+        others are NaN and counted in ``skipped``. With ``k`` too, each shape's k nearest are
+        then searched by neighbour descent (Dong, Moses & Li, WWW 2011): in rounds, each pair
+        ``(i, l)`` with ``l`` among the ``ceil(DESCENT * k)`` nearest found of one of the as
+        many nearest found of ``i`` is matched, until a round adds none (``k`` then prunes
+        nothing; the ranking is ``rank_by``). Not exact; with ``candidates = 2 k`` every
+        shape's 10 nearest were brute force's on the collections measured
+        (docs/design/recognition.md). Not with ``client``.
     spectral : bool, default False
         Also the distances between the shapes' spectral signatures (``PairwiseGH.spectral``,
         :func:`gromov.spectrum.spectral_distances`: one sparse eigendecomposition per shape),
         which the ``combined`` ranking needs; always with ``candidates``. Not with ``client``.
+    rank_by : {"trimmed", "gh", "combined"}, default "trimmed"
+        The ranking the neighbour descent (``candidates`` and ``k``) follows
+        (:meth:`PairwiseGH.ranked`).
     **match_options
         Passed to :func:`gromov.match` (``norm``, ``solver``, ``init``, ``orientation``, ``search``...).
 
@@ -465,6 +474,8 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     check_rank_residual(rank_residual)
     if k is not None and client is not None:
         raise ValueError("k (nearest neighbours only) is not available with a Dask client")
+    if rank_by not in RANK_BY:
+        raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
     if candidates is not None:
         if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
             raise ValueError(f"candidates must be an integer >= 1, got {candidates!r}")
@@ -544,10 +555,18 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
             try:
                 if candidates is not None:   # the first stage's candidates, all matched
                     first = _candidate_pairs(S, candidates) | keep
-                    skipped = sum(1 for ij in pairs if ij not in first)
-                    pairs = [ij for ij in pairs if ij in first]
-                    runs = _run(prepared, pairs, keep, jobs, progress, f"{desc} (candidates {candidates})",
+                    todo = [ij for ij in pairs if ij in first]
+                    runs = _run(prepared, todo, keep, jobs, progress, f"{desc} (candidates {candidates})",
                                 options, matrix=True)
+                    if k is not None:   # then the neighbours' neighbours, until none is new
+                        for ij, value in zip(todo, runs):
+                            put(ij, value)
+                            done[ij] = done[ij[::-1]] = True
+                        more, runs_more = _descent_runs(prepared, k, done, lambda: _ranked_values(
+                            rank_by, S, rel, trim), keep, jobs, progress, desc, options, put)
+                        todo, runs = todo + more, runs + runs_more
+                    skipped = len(pairs) - len(todo)
+                    pairs = todo
                 elif k is None:
                     runs = _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=True)
                 else:   # only the pairs that can be among some shape's k nearest
@@ -578,6 +597,61 @@ def _candidate_pairs(S: np.ndarray, c: int) -> set:
         for j in others[np.argsort(S[i, others], kind="stable")[:c]].tolist():
             out.add((min(i, j), max(i, j)))
     return out
+
+
+#: The neighbour descent of a two-stage search (``gh_matrix(candidates=..., k=...)``) looks at
+#: this many times k nearest of each shape and of each of them (docs/design/recognition.md,
+#: "Two stages against brute force").
+DESCENT = 1.5
+
+
+def _ranked_values(rank_by: str, S, rel, trim) -> np.ndarray:
+    """The matrix a two-stage search ranks by (NaN where a pair is not matched)."""
+    if rank_by == "combined":
+        from ..spectrum import combined
+
+        return combined(S, trim)
+    return rel if rank_by == "gh" else trim
+
+
+def _descent_pairs(R: np.ndarray, matched: np.ndarray, m: int) -> list[tuple[int, int]]:
+    """The unmatched pairs ``(i, l)``, ``i < l``, with ``l`` among the ``m`` nearest (by ``R``,
+    over the matched pairs) of one of the ``m`` nearest of ``i``: a round of the neighbour
+    descent of Dong, Moses & Li ("Efficient k-nearest neighbor graph construction for generic
+    similarity measures", WWW 2011): a neighbour of a neighbour is likely a neighbour."""
+    n = len(R)
+    off = matched & ~np.eye(n, dtype=bool)
+    near = np.argsort(np.where(off, R, np.inf), axis=1, kind="stable")[:, :m]
+    ok = np.take_along_axis(off, near, axis=1)   # a row with fewer than m matched pairs
+    new = np.zeros((n, n), dtype=bool)
+    for i in range(n):
+        hop = near[i][ok[i]]
+        reach = near[hop][ok[hop]]
+        new[i, reach] = True
+    new |= new.T
+    new &= ~matched
+    np.fill_diagonal(new, False)
+    return [(int(i), int(j)) for i, j in np.argwhere(np.triu(new, 1))]
+
+
+def _descent_runs(prepared, k, done, ranked, keep, jobs, progress, desc, options, put):
+    """``(pairs, worker results)`` of the neighbour descent's rounds (:func:`_descent_pairs`
+    with ``m = ceil(DESCENT k)``) from the pairs ``done``, each round's pairs matched (and
+    ``put``, ``done``) before the next is chosen, until a round finds none."""
+    m = min(int(np.ceil(DESCENT * k)), len(done) - 1)
+    pairs, runs, rounds = [], [], 0
+    while True:
+        todo = _descent_pairs(ranked(), done, m)
+        if not todo:
+            return pairs, runs
+        rounds += 1
+        got = _run(prepared, todo, keep, jobs, progress, f"{desc} (neighbour descent, round {rounds})",
+                   options, matrix=True)
+        for ij, value in zip(todo, got):
+            put(ij, value)
+            done[ij] = done[ij[::-1]] = True
+        pairs += todo
+        runs += got
 
 
 def _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress, desc, options, match_options):
