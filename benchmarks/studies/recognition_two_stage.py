@@ -1,7 +1,8 @@
 """The two-stage search against brute force, read off one complete matrix of a collection.
 
 Run:  .venv/bin/python benchmarks/studies/recognition_two_stage.py --cache DIR --bench JSON
-          [--collection watertight] [--candidates 10,20,30,40,60,80] [--top 10]
+          [--collection watertight] [--with tosca] [--candidates 10,20,30,40,60,80] [--top 10]
+          [--first-stages] [--descent] [--measured NPZ,JSON]
           [--json benchmarks/studies/recognition_two_stage.json]
 
 after ``benchmarks/bench_recognition.py --collections watertight --methods shapedna,hks,combined
@@ -26,6 +27,14 @@ metric of the matrix, unit-area heat distances; computed here, 10 shapes at a ti
 ``DIR/eccentricity-<collection>.npz``), weighted geometric means of S and E, and the input
 meshes' Shape-DNA and pooled HKS of the benchmark. Their time adds the signatures' measured
 cost to the brute-force run's preparation. E then also joins the pair-local rankings.
+
+**Neighbour descent.** With ``--descent``, ``gh_matrix(candidates=C, k=K)``'s search (the first
+stage, then rounds of ``gromov.experiments.pairwise._descent_pairs`` until one adds no pair)
+read off each collection's complete matrix of each ranking, for K = 5, 10, 20, m = K, 1.5 K, 2 K
+and C = K, 2 K (:data:`DESCENTS`). With ``--measured NPZ,JSON`` (a two-stage run of
+``bench_recognition.py --candidates C [--k K] --cache DIR`` and its results file): which
+queries of that run have brute force's ten nearest, and whether its matched values are the
+complete matrix's.
 
 **Rankings of the complete matrix.** Nearest neighbour, first and second tier, EER (one threshold
 over all pairs; after local scaling beside it) and nearest neighbour per class, for the combined
