@@ -440,9 +440,9 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         then searched by neighbour descent (Dong, Moses & Li, WWW 2011): in rounds, each pair
         ``(i, l)`` with ``l`` among the ``ceil(DESCENT * k)`` nearest found of one of the as
         many nearest found of ``i`` is matched, until a round adds none (``k`` then prunes
-        nothing; the ranking is ``rank_by``). Not exact; with ``candidates = 2 k`` every
-        shape's 10 nearest were brute force's on the collections measured
-        (docs/design/recognition.md). Not with ``client``.
+        nothing; the ranking is ``rank_by``). Not exact; with ``candidates = 2 k`` and the
+        combined ranking every shape's 10 nearest were brute force's on the collections
+        measured (docs/design/recognition.md, "Neighbour descent"). Not with ``client``.
     spectral : bool, default False
         Also the distances between the shapes' spectral signatures (``PairwiseGH.spectral``,
         :func:`gromov.spectrum.spectral_distances`: one sparse eigendecomposition per shape),
@@ -601,7 +601,7 @@ def _candidate_pairs(S: np.ndarray, c: int) -> set:
 
 #: The neighbour descent of a two-stage search (``gh_matrix(candidates=..., k=...)``) looks at
 #: this many times k nearest of each shape and of each of them (docs/design/recognition.md,
-#: "Two stages against brute force").
+#: "Neighbour descent").
 DESCENT = 1.5
 
 
