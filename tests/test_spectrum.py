@@ -194,3 +194,21 @@ def test_two_stage_matrix_with_k_adds_the_descent_and_keeps_the_values():
     np.testing.assert_array_equal(two.trimmed[now], full.trimmed[now])
     with pytest.raises(ValueError, match="rank_by"):
         gh_matrix(shapes, "geodesic", candidates=1, k=1, rank_by="distance", **opts)
+
+
+def test_a_descent_run_again_from_its_store_matches_nothing(tmp_path, monkeypatch):
+    from gromov.experiments import pairwise
+
+    files = []
+    for i, m in enumerate(_sheets()):
+        f = tmp_path / f"s{i}.off"
+        gromov.save(m, f)
+        files.append(str(f))
+    opts = dict(n_samples=15, resolution=None, jobs=1, candidates=1, k=1, rank_by="combined")
+    first = gh_matrix(files, "geodesic", store=tmp_path / "store", **opts)
+    # the pairs it matched are closed under the descent: a second run reads them all and
+    # matches none
+    monkeypatch.setattr(pairwise, "_match", lambda *a, **k: pytest.fail("a pair was matched again"))
+    again = gh_matrix(files, "geodesic", store=tmp_path / "store", **opts)
+    np.testing.assert_array_equal(again.trimmed, first.trimmed)
+    assert again.skipped == first.skipped
