@@ -67,6 +67,15 @@ def _sheets():
     return [grid(21, 11), rolled_grid(21, 11), grid(31, 11, width=2 * np.pi), torus(30, 12), grid(15, 15)]
 
 
+def _sheet_files(folder) -> list[str]:
+    """:func:`_sheets` saved as OFF files in ``folder``."""
+    files = []
+    for i, m in enumerate(_sheets()):
+        files.append(str(folder / f"s{i}.off"))
+        gromov.save(m, files[-1])
+    return files
+
+
 def test_two_stage_matrix_matches_only_the_candidates_and_agrees_with_the_full_one():
     shapes = [ShapeMetric(m, "geodesic", resolution=None) for m in _sheets()]
     opts = dict(n_samples=15, jobs=1)
@@ -94,11 +103,7 @@ def test_two_stage_matrix_matches_only_the_candidates_and_agrees_with_the_full_o
 
 
 def test_pairwise_ranks_by_the_combined_distance(tmp_path, capsys):
-    files = []
-    for i, m in enumerate(_sheets()[:4]):
-        f = tmp_path / f"s{i}.off"
-        gromov.save(m, f)
-        files.append(str(f))
+    files = _sheet_files(tmp_path)[:4]
     base = ["pairwise", *files, "--metric", "geodesic", "--samples", "15", "--jobs", "1"]
     assert main([*base, "--rank-by", "combined", "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
@@ -136,11 +141,7 @@ def test_search_a_store_in_two_stages(tmp_path, capsys):
     from gromov.spectrum import SPECTRUM_K
     from gromov.store import ShapeStore
 
-    files = []
-    for i, m in enumerate(_sheets()):
-        f = tmp_path / f"s{i}.off"
-        gromov.save(m, f)
-        files.append(str(f))
+    files = _sheet_files(tmp_path)
     store = tmp_path / "store"
     opts = ["--metric", "geodesic", "--resolution", "1000"]
     assert main(["index", *files, "--store", str(store), *opts, "-q"]) == 0
@@ -199,11 +200,7 @@ def test_two_stage_matrix_with_k_adds_the_descent_and_keeps_the_values():
 def test_a_descent_run_again_from_its_store_matches_nothing(tmp_path, monkeypatch):
     from gromov.experiments import pairwise
 
-    files = []
-    for i, m in enumerate(_sheets()):
-        f = tmp_path / f"s{i}.off"
-        gromov.save(m, f)
-        files.append(str(f))
+    files = _sheet_files(tmp_path)
     opts = dict(n_samples=15, resolution=None, jobs=1, candidates=1, k=1, rank_by="combined")
     first = gh_matrix(files, "geodesic", store=tmp_path / "store", **opts)
     # the pairs it matched are closed under the descent: a second run reads them all and

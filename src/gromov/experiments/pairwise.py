@@ -74,18 +74,14 @@ class PairwiseGH:
         r"""The combined ranking :math:`S^w\, G^{1-w}` of ``spectral`` and ``trimmed``
         (:func:`gromov.spectrum.combined`, w = :data:`~gromov.spectrum.SPECTRUM_WEIGHT`);
         None without ``spectral``."""
-        if self.spectral is None or self.trimmed is None:
-            return None
-        from ..spectrum import combined
-
-        return combined(self.spectral, self.trimmed)
+        return _ranked_values("combined", self.spectral, self.relative, self.trimmed)
 
     def ranked(self, rank_by: str = "trimmed") -> np.ndarray:
         """The matrix recognition ranks by: ``"trimmed"``, ``"gh"`` (``relative``) or
         ``"combined"``."""
         if rank_by not in RANK_BY:
             raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
-        out = {"trimmed": self.trimmed, "gh": self.relative, "combined": self.combined}[rank_by]
+        out = _ranked_values(rank_by, self.spectral, self.relative, self.trimmed)
         if out is None:
             raise ValueError(f"rank_by={rank_by!r}: this matrix has no {rank_by} values (no spectral "
                              "signatures: not computed with a Dask client)")
@@ -558,15 +554,15 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
                     todo = [ij for ij in pairs if ij in first]
                     runs = _run(prepared, todo, keep, jobs, progress, f"{desc} (candidates {candidates})",
                                 options, matrix=True)
-                    if k is not None:   # then the neighbours' neighbours, until none is new
-                        for ij, value in zip(todo, runs):
-                            put(ij, value)
-                            done[ij] = done[ij[::-1]] = True
-                        more, runs_more = _descent_runs(prepared, k, done, lambda: _ranked_values(
-                            rank_by, S, rel, trim), keep, jobs, progress, desc, options, put)
-                        todo, runs = todo + more, runs + runs_more
                     skipped = len(pairs) - len(todo)
                     pairs = todo
+                    if k is not None:   # then the neighbours' neighbours, until none is new
+                        for ij, value in zip(pairs, runs):
+                            put(ij, value)
+                            done[ij] = done[ij[::-1]] = True
+                        skipped -= _descent_runs(prepared, k, done, lambda: _ranked_values(
+                            rank_by, S, rel, trim), keep, jobs, progress, desc, options, put)
+                        pairs, runs = [], []   # every pair put already
                 elif k is None:
                     runs = _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=True)
                 else:   # only the pairs that can be among some shape's k nearest
@@ -605,9 +601,12 @@ def _candidate_pairs(S: np.ndarray, c: int) -> set:
 DESCENT = 1.5
 
 
-def _ranked_values(rank_by: str, S, rel, trim) -> np.ndarray:
-    """The matrix a two-stage search ranks by (NaN where a pair is not matched)."""
+def _ranked_values(rank_by: str, S, rel, trim) -> np.ndarray | None:
+    """The matrix ranked by ``rank_by`` (:meth:`PairwiseGH.ranked`; the neighbour descent's),
+    NaN where a pair is not matched; None for ``"combined"`` without ``S`` or ``trim``."""
     if rank_by == "combined":
+        if S is None or trim is None:
+            return None
         from ..spectrum import combined
 
         return combined(S, trim)
@@ -634,24 +633,23 @@ def _descent_pairs(R: np.ndarray, matched: np.ndarray, m: int) -> list[tuple[int
     return [(int(i), int(j)) for i, j in np.argwhere(np.triu(new, 1))]
 
 
-def _descent_runs(prepared, k, done, ranked, keep, jobs, progress, desc, options, put):
-    """``(pairs, worker results)`` of the neighbour descent's rounds (:func:`_descent_pairs`
-    with ``m = ceil(DESCENT k)``) from the pairs ``done``, each round's pairs matched (and
-    ``put``, ``done``) before the next is chosen, until a round finds none."""
+def _descent_runs(prepared, k, done, ranked, keep, jobs, progress, desc, options, put) -> int:
+    """The neighbour descent's rounds (:func:`_descent_pairs` with ``m = ceil(DESCENT k)``) from
+    the pairs ``done``: each round's pairs matched, ``put`` and marked ``done`` before the next
+    is chosen, until a round finds none. Returns how many pairs the rounds matched."""
     m = min(int(np.ceil(DESCENT * k)), len(done) - 1)
-    pairs, runs, rounds = [], [], 0
+    matched, rounds = 0, 0
     while True:
         todo = _descent_pairs(ranked(), done, m)
         if not todo:
-            return pairs, runs
+            return matched
         rounds += 1
         got = _run(prepared, todo, keep, jobs, progress, f"{desc} (neighbour descent, round {rounds})",
                    options, matrix=True)
         for ij, value in zip(todo, got):
             put(ij, value)
             done[ij] = done[ij[::-1]] = True
-        pairs += todo
-        runs += got
+        matched += len(todo)
 
 
 def _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress, desc, options, match_options):
