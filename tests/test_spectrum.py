@@ -209,3 +209,53 @@ def test_a_descent_run_again_from_its_store_matches_nothing(tmp_path, monkeypatc
     again = gh_matrix(files, "geodesic", store=tmp_path / "store", **opts)
     np.testing.assert_array_equal(again.trimmed, first.trimmed)
     assert again.skipped == first.skipped
+
+
+def test_a_query_descent_round_reaches_the_neighbours_of_its_nearest():
+    from gromov.retrieval import _descent_candidates, _nearest_lists
+
+    # a collection on a line, every value known; the query at 0.2 has found 0 and 4
+    x = np.array([0.0, 1.0, 2.1, 3.3, 4.6, 6.0])
+    graph = _nearest_lists(np.abs(x[:, None] - x[None]) + np.diag(np.full(len(x), np.nan)), 2)
+    assert [g.tolist() for g in graph] == [[1, 2], [0, 2], [1, 3], [2, 4], [3, 5], [4, 3]]
+    values = {0: 0.2, 4: 4.4}
+    # the query's two nearest found are 0 and 4: their nearest, less those matched
+    assert _descent_candidates(values, graph, 2).tolist() == [1, 2, 3, 5]
+    assert _descent_candidates(values, graph, 1).tolist() == [1, 2]
+    # unknown values give no neighbours
+    R = np.full((3, 3), np.nan)
+    R[0, 1] = R[1, 0] = 1.0
+    assert [g.tolist() for g in _nearest_lists(R, 2)] == [[1], [0], []]
+
+
+def test_a_two_stage_search_descends_over_the_known_values():
+    from gromov.retrieval import nearest
+
+    shapes = [ShapeMetric(m, "geodesic", resolution=None) for m in _sheets()]
+    full = gh_matrix(shapes, "geodesic", n_samples=15, jobs=1, spectral=True)
+    C = full.combined[1:, 1:]
+    known = {(i, j): float(C[i, j]) for i in range(4) for j in range(i + 1, 4)}
+    opts = dict(k=1, metric="geodesic", n_samples=15, rank_by="combined", candidates=1)
+    first = nearest(shapes[0], shapes[1:], **opts)
+    assert first.full_matches == 1 and first.known_pairs == 0   # nothing known: the first stage alone
+    two = nearest(shapes[0], shapes[1:], known=known, **opts)
+    assert two.known_pairs == 6 and two.full_matches > 1
+    nearest_first = next(iter(first.values))
+    for j in np.argsort(np.where(np.arange(4) == nearest_first, np.inf, C[nearest_first]), kind="stable")[:2]:
+        assert j in two.values   # the first one's two nearest (m = ceil(1.5 k) = 2) matched
+    for j, v in two.values.items():
+        assert v == pytest.approx(full.combined[0, j + 1], rel=1e-12)
+    assert two.neighbors[0].distance == min(two.values.values())
+    assert two.skipped == 4 - two.full_matches
+
+
+def test_search_a_store_descends_over_the_pairs_pairwise_recorded(tmp_path, capsys):
+    files = _sheet_files(tmp_path)
+    store = str(tmp_path / "store")
+    opts = ["--metric", "geodesic", "--resolution", "1000", "--samples", "15", "--rank-by", "combined"]
+    assert main(["pairwise", *files, "--store", store, *opts, "--candidates", "1", "-k", "1", "-q"]) == 0
+    capsys.readouterr()
+    assert main(["search", files[0], "--store", store, *opts, "-k", "1", "--candidates", "1", "--json", "-q"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["known_pairs"] > 0 and res["full_matches"] > 1 and res["ranked_by"] == "combined"
+    assert res["full_matches"] + res["skipped"] == 4

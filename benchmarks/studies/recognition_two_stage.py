@@ -31,7 +31,8 @@ cost to the brute-force run's preparation. E then also joins the pair-local rank
 **Neighbour descent.** With ``--descent``, ``gh_matrix(candidates=C, k=K)``'s search (the first
 stage, then rounds of ``gromov.experiments.pairwise._descent_pairs`` until one adds no pair)
 read off each collection's complete matrix of each ranking, for K = 5, 10, 20, m = K, 1.5 K, 2 K
-and C = K, 2 K (:data:`DESCENTS`). With ``--measured NPZ,JSON`` (a two-stage run of
+and C = K, 2 K (:data:`DESCENTS`); and ``nearest(query, store, k=K, candidates=C)``'s, each
+shape the query of a store of the others (:func:`query_descent`, :data:`QUERY_DESCENTS`). With ``--measured NPZ,JSON`` (a two-stage run of
 ``bench_recognition.py --candidates C [--k K] --cache DIR`` and its results file): which
 queries of that run have brute force's ten nearest, and whether its matched values are the
 complete matrix's.
@@ -201,21 +202,63 @@ def descent(D: np.ndarray, S: np.ndarray, c: int, top: int, factor: float, label
     ranking the descent follows): the first stage, then rounds of
     :func:`gromov.experiments.pairwise._descent_pairs` with ``m = ceil(factor * top)`` until
     one adds no pair."""
+    m = min(int(np.ceil(factor * top)), len(D) - 1)
+    matched, rounds = descent_closure(D, matched_by_candidates(S, c), m)
+    return {"candidates": c, "top": top, "factor": factor, "m": m, "rounds": rounds,
+            **against_brute_force(D, S, matched, top, labels)}
+
+
+def query_descent(D: np.ndarray, S: np.ndarray, c: int, top: int, factor: float) -> dict:
+    """``nearest(query, store, k=top, candidates=c)`` read off the complete matrix ``D``, each shape
+    in turn the query and the others the store: the store's pairs those of :func:`descent` run on
+    the others alone (``gromov pairwise --candidates c -k top``), the query's first stage its ``c``
+    nearest by ``S``, then rounds of :func:`gromov.retrieval._descent_candidates` over the others'
+    ``m = ceil(factor * top)`` nearest until one adds none (``factor`` 0: the first stage alone).
+    Per query: the pairs matched and whether its ``top`` nearest are brute force's, in order."""
+    from gromov.retrieval import _descent_candidates, _nearest_lists
+
+    n, m = len(D), min(int(np.ceil(factor * top)), len(D) - 2)
+    exact, pairs = [], []
+    for q in range(n):
+        rest = np.delete(np.arange(n), q)
+        Dr = D[np.ix_(rest, rest)]
+        matched = np.eye(n - 1, dtype=bool)
+        for i, j in _candidate_pairs(S[np.ix_(rest, rest)], c):
+            matched[i, j] = matched[j, i] = True
+        closed, _ = descent_closure(Dr, matched, m)
+        graph = _nearest_lists(np.where(closed & ~np.eye(n - 1, dtype=bool), Dr, np.nan), m)
+        d = D[q, rest]
+        values = {int(j): float(d[j]) for j in np.argsort(S[q, rest], kind="stable")[:c]}
+        while factor:
+            new = _descent_candidates(values, graph, m)
+            if not len(new):
+                break
+            values.update({int(j): float(d[j]) for j in new})
+        ours = [j for _, j in sorted((v, j) for j, v in values.items())[:top]]
+        exact.append(ours == np.argsort(d, kind="stable")[:top].tolist())
+        pairs.append(len(values))
+    return {"candidates": c, "top": top, "factor": factor, "m": m, "top_equal_list": float(np.mean(exact)),
+            "queries_differing": int(n - np.sum(exact)), "pairs_per_query": float(np.mean(pairs)),
+            "pairs_per_query_max": int(np.max(pairs)), "collection": n - 1}
+
+
+def descent_closure(D: np.ndarray, matched: np.ndarray, m: int) -> tuple[np.ndarray, int]:
+    """``(matched, rounds)``: ``matched`` (changed in place) with rounds of
+    :func:`gromov.experiments.pairwise._descent_pairs` added until one adds none."""
     from gromov.experiments.pairwise import _descent_pairs
 
-    matched = matched_by_candidates(S, c)
-    m = min(int(np.ceil(factor * top)), len(D) - 1)
     rounds = 0
     while True:
         new = _descent_pairs(np.where(matched, D, np.nan), matched, m)
         if not new:
-            break
+            return matched, rounds
         rounds += 1
         for i, j in new:
             matched[i, j] = matched[j, i] = True
-    return {"candidates": c, "top": top, "factor": factor, "m": m, "rounds": rounds,
-            **against_brute_force(D, S, matched, top, labels)}
 
+
+#: The single-query descents read off each complete matrix (``--descent``): (top, factor, C).
+QUERY_DESCENTS = [(10, 0.0, 20), (10, 0.0, 50), (10, 1.0, 20), (10, 1.5, 10), (10, 1.5, 20), (10, 2.0, 20), (5, 1.5, 10)]
 
 #: The neighbour descents read off each complete matrix (``--descent``): (top, factor, C).
 DESCENTS = [(top, f, c) for top in (5, 10, 20) for f in (1.0, 1.5, 2.0) for c in (top, 2 * top)]
@@ -340,6 +383,8 @@ def main(argv=None) -> None:
                     for t in rows:
                         t["estimated_seconds"] = row["seconds_prepare"] + t["pairs"] * per_pair
                 res["descent"][c][rank] = rows
+            res["descent"][c]["query"] = [query_descent(mats[c]["combined"], mats[c]["spectral"], cc, top, f)
+                                          for top, f, cc in QUERY_DESCENTS]
     if args.measured is not None:
         npz, results = str(args.measured).split(",")
         z = np.load(npz)
@@ -366,7 +411,13 @@ def main(argv=None) -> None:
         print(f"adaptive, first {t['first']}, floor q {t['quantile']}: {t['pairs']} pairs, top-{args.top} equal "
               f"{t['top_equal_list']:.3f}, NN {t['nn']:.3f}")
     for c, ranks in res.get("descent", {}).items():
+        for t in ranks.get("query", []):
+            print(f"{c} one query (combined) top {t['top']} m {t['m']} C {t['candidates']}: top equal "
+                  f"{t['top_equal_list']:.3f} ({t['queries_differing']} differ), {t['pairs_per_query']:.1f} pairs a "
+                  f"query (at most {t['pairs_per_query_max']}) of {t['collection']}")
         for rank, rows in ranks.items():
+            if rank == "query":
+                continue
             for t in rows:
                 print(f"{c} descent ({rank}) top {t['top']} m {t['m']} C {t['candidates']}: {t['rounds']} rounds, "
                       f"{t['pairs']} pairs, top equal {t['top_equal_list']:.3f} ({t['queries_differing']} differ)"

@@ -459,8 +459,8 @@ class NearestResult:
         Whether only the lower bound pruned (the neighbours are brute force's).
     rank_by : str
     known_pairs : int
-        Values between candidates known for the triangle estimates (recorded in the store, or
-        given in ``known``); 0 when the estimates are off.
+        Values between candidates known for the triangle estimates or the neighbour descent
+        (recorded in the store, or given in ``known``); 0 when neither is used.
     partial : PartialMatrix or None
         :func:`nearest_wholes`: the query matched as a part into every candidate (one row), with
         the covered fractions and area ratios.
@@ -556,12 +556,18 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         ``known``). Not exact (module docstring); 0 or None: not used.
     known : dict, optional
         ``{(i, j): ranked value}`` of pairs of candidates (positions in ``shapes``) found
-        before, for the triangle estimates; with a store, its recorded pairs with these options
-        are read as well. The query's own recorded pairs are never read: it is matched.
+        before, for the triangle estimates or, with ``candidates``, the neighbour descent (in
+        the ranking ``rank_by``); with a store, its recorded pairs with these options are read
+        as well. The query's own recorded pairs are never read: it is matched.
     candidates : int, optional
-        A two-stage search: only the ``candidates`` shapes nearest to the query by spectral
+        A two-stage search: the ``candidates`` shapes nearest to the query by spectral
         distance (:func:`gromov.spectrum.spectrum`, kept beside each store entry) are matched,
-        all of them; ``prune`` and the triangle estimates are not used. Not exact.
+        all of them; then, where values between the shapes are known (recorded in the store,
+        e.g. by ``gromov pairwise --candidates C -k K``, or given in ``known``), rounds of a
+        neighbour descent: each shape among the m = ceil(1.5 k) nearest of one of the query's
+        m nearest found is matched, until a round adds none (``DESCENT`` of
+        :mod:`gromov.experiments.pairwise`; docs/design/recognition.md). ``prune`` and the
+        triangle estimates are not used. Not exact.
     progress : bool, default False
         A progress bar (tqdm) on stderr.
     **match_options
@@ -597,6 +603,13 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     bad = [ij for ij in known if not (0 <= min(ij) and max(ij) < len(candidates)) or ij[0] == ij[1]]
     if bad:
         raise ValueError(f"known needs pairs of two candidates (positions below {len(candidates)}), got {bad[0]}")
+    if n_first is not None:   # no bound, profile or triangle estimate: none is read or computed
+        from .spectrum import SPECTRUM_WEIGHT, signature_distance, spectrum
+
+        spectral = signature_distance(spectrum(query_shape), np.array([c.spectrum() for c in candidates]))
+        return _two_stage(query_shape, candidates, k, n_first, spectral, SPECTRUM_WEIGHT if combine else None,
+                          rank_by, known, recorded(options) if recorded is not None else {}, metric, options,
+                          progress)
     if triangle is not None:   # the candidates' known pairs, pivots for the query (node -1)
         at = 2 if rank_by == "trimmed" else 1
         for (i, j), v in (recorded(options) if recorded is not None else {}).items():
@@ -604,30 +617,22 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         for (i, j), v in known.items():
             triangle.add(i, j, v, estimates=False)
     n_known = 0 if triangle is None else sum(len(v) for v in triangle.known.values()) // 2
-    if n_first is None:
-        qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
-        kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
-        cbs = [c.bound() for c in candidates]
-        bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
-        gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
-    else:   # a two-stage search needs no bound: no candidate's invariants read or computed
-        bounds = gaps = np.full(len(candidates), np.nan)
+    qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
+    kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
+    cbs = [c.bound() for c in candidates]
+    bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
+    gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
     from tqdm import tqdm
 
     spectral = weight = None
     keys = _keys(bounds, gaps, prune, slack)
-    if combine or n_first is not None:
+    if combine:   # S^w B^(1 - w) <= S^w G^(1 - w) wherever B <= G
         from .spectrum import SPECTRUM_WEIGHT, combined, signature_distance, spectrum
 
         spectral = signature_distance(spectrum(query_shape), np.array([c.spectrum() for c in candidates]))
         weight = SPECTRUM_WEIGHT
-    if combine:   # S^w B^(1 - w) <= S^w G^(1 - w) wherever B <= G
         keys = np.where(np.isfinite(keys), spectral**weight * np.maximum(keys, 0.0) ** (1.0 - weight), keys)
     todo = np.arange(len(candidates))
-    if n_first is not None:   # the first stage: the nearest by spectral distance, all matched
-        todo = np.argsort(spectral, kind="stable")[:n_first]
-        keys = np.full(len(candidates), np.inf)
-        keys[todo] = -np.inf
     bar = tqdm(total=len(todo), desc="nearest", disable=not progress, leave=False)
 
     def run(pairs):
@@ -647,10 +652,85 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     finally:
         bar.close()
     neighbors = [Neighbor(j, candidates[j].name, v) for v, j in rows.best[0]]
-    return NearestResult(neighbors, n_run, n_skipped + len(candidates) - len(todo), bounds, gaps,
-                         {j: v for (_, j), v in values.items()},
-                         n_first is None and (prune == "bound" or prune == "none"),
-                         "combined" if combine else rank_by, n_known)
+    return NearestResult(neighbors, n_run, n_skipped, bounds, gaps, {j: v for (_, j), v in values.items()},
+                         prune == "bound" or prune == "none", "combined" if combine else rank_by, n_known)
+
+
+def _two_stage(query_shape, candidates, k, n_first, spectral, weight, rank_by, known, recorded, metric, options,
+               progress) -> NearestResult:
+    """:func:`nearest` with ``candidates``: the ``n_first`` nearest by ``spectral`` matched, then
+    rounds of :func:`_descent_candidates` over the values between candidates that are known
+    (``known``, or ``recorded`` in the store) until a round adds none. ``weight``: the combined
+    ranking's spectral weight (None: ``rank_by`` alone)."""
+    from tqdm import tqdm
+
+    from .experiments.pairwise import DESCENT
+    from .spectrum import combined, signature_distance
+
+    n = len(candidates)
+    def spectral_between(i, j):
+        sig = {a: candidates[a].spectrum() for a in np.unique(np.r_[i, j]).tolist()}
+        return np.array([signature_distance(sig[a], sig[b]) for a, b in zip(i.tolist(), j.tolist())])
+
+    between = _known_matrix(n, known, recorded, rank_by, weight, spectral_between)
+    m = min(int(np.ceil(DESCENT * k)), n - 1)
+    graph = None if between is None else _nearest_lists(between, m)
+    values = {}
+    todo = np.argsort(spectral, kind="stable")[:n_first]
+    with tqdm(total=len(todo), desc="nearest", disable=not progress, leave=False) as bar:
+        while len(todo):
+            for j in todo.tolist():
+                v = _ranked(_match(query_shape, candidates[j].shape(), metric, **options), rank_by)
+                values[j] = float(combined(spectral[j], v, weight)) if weight is not None else v
+                bar.update(1)
+            todo = np.empty(0, np.int64) if graph is None else _descent_candidates(values, graph, m)
+            bar.total += len(todo)
+            bar.refresh()
+    order = sorted((v, j) for j, v in values.items())[:k]
+    n_known = 0 if between is None else int(np.isfinite(between[np.triu_indices(n, 1)]).sum())
+    return NearestResult([Neighbor(j, candidates[j].name, v) for v, j in order], len(values), n - len(values),
+                         np.full(n, np.nan), np.full(n, np.nan), values, False,
+                         "combined" if weight is not None else rank_by, n_known)
+
+
+def _known_matrix(n: int, known: dict, recorded: dict, rank_by: str, weight, spectral_between):
+    """``(n, n)`` ranked values between candidates, NaN where unknown (None when none is):
+    ``known`` as given (already in the ranking), ``recorded`` pairs ``(distance, relative,
+    ranking)`` read in it (``weight``: combined with ``spectral_between(i, j)``, the spectral
+    distances of those pairs)."""
+    if not known and not recorded:
+        return None
+    R = np.full((n, n), np.nan)
+    if recorded:
+        ij = np.array(list(recorded), dtype=np.int64)
+        i, j = ij[:, 0], ij[:, 1]
+        v = np.array([val[1 if rank_by == "gh" else 2] for val in recorded.values()], dtype=np.float64)
+        if weight is not None:
+            from .spectrum import combined
+
+            v = combined(spectral_between(i, j), v, weight)
+        R[i, j] = R[j, i] = v
+    for (i, j), v in known.items():
+        R[i, j] = R[j, i] = v
+    return R
+
+
+def _nearest_lists(R: np.ndarray, m: int) -> list[np.ndarray]:
+    """Each candidate's ``m`` nearest others by ``R`` (its known values only; fewer where it
+    has fewer), ties by position."""
+    near = np.argsort(np.where(np.isnan(R), np.inf, R), axis=1, kind="stable")[:, :m]
+    known = np.isfinite(np.take_along_axis(R, near, axis=1))
+    return [row[ok] for row, ok in zip(near, known)]
+
+
+def _descent_candidates(values: dict, graph: list, m: int) -> np.ndarray:
+    """A round of the neighbour descent for one query (Dong, Moses & Li, WWW 2011, with the
+    collection's neighbour lists fixed): the candidates among the ``m`` nearest (``graph``) of
+    the query's ``m`` nearest found (``values``: candidate -> ranked value) that are not matched
+    yet, sorted."""
+    near = [j for _, j in sorted((v, j) for j, v in values.items())[:m]]
+    reach = np.unique(np.concatenate([graph[j] for j in near])) if near else np.empty(0, np.int64)
+    return reach[~np.isin(reach, list(values))].astype(np.int64)
 
 
 def nearest_wholes(query, shapes, k: int = 5, metric: str | None = None, *, n_samples: int = 100, seed: int = 0,

@@ -160,9 +160,12 @@ def _search_parser(sub) -> None:
                         "distance to it the store has recorded (gromov pairwise records them; "
                         f"default {TRIANGLE_SLACK:g}; 0: off)")
     q.add_argument("--candidates", type=_positive_int, default=None, metavar="C",
-                   help="a two-stage search: match only the C shapes nearest to the query by "
-                        "spectral distance (Shape-DNA, kept in the store once computed), all of "
-                        "them; --prune is not used")
+                   help="a two-stage search: match the C shapes nearest to the query by spectral "
+                        "distance (Shape-DNA, kept in the store once computed), all of them; then, "
+                        "where the store holds values between its shapes (gromov pairwise "
+                        "--candidates C -k K records them), the 1.5 K nearest of the query's 1.5 K "
+                        "nearest found, in rounds until none is new (neighbour descent); --prune "
+                        "is not used")
     q.add_argument("--partial", action="store_true",
                    help="the query is a part (a cut or holed shape): match it as the part into every "
                         "stored shape (gromov match --partial) and rank them by the partial distance "
