@@ -259,3 +259,59 @@ def test_search_a_store_descends_over_the_pairs_pairwise_recorded(tmp_path, caps
     res = json.loads(capsys.readouterr().out)
     assert res["known_pairs"] > 0 and res["full_matches"] > 1 and res["ranked_by"] == "combined"
     assert res["full_matches"] + res["skipped"] == 4
+
+
+def _descent_on_points(monkeypatch, known: dict, shared: bool = False) -> tuple[np.ndarray, list]:
+    """:func:`_descent_runs` over 14 random points of the plane ranked by their distances, the first
+    stage each point's nearest by a noisy copy of them, ``known`` pairs given before; ``shared``:
+    the known pairs counted as searched too. Returns the pairs searched and the pairs run."""
+    from gromov.experiments import pairwise
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(14, 2))
+    D = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    noisy = D + rng.uniform(0.0, 1.5, size=D.shape)
+    R = np.full(D.shape, np.nan)
+    run = []
+
+    def fake_run(prepared, todo, *args, **kwargs):
+        run.extend(todo)
+        return [(D[ij],) * 3 + (None,) for ij in todo]
+
+    def put(ij, value):
+        R[ij] = R[ij[::-1]] = value[2]
+
+    monkeypatch.setattr(pairwise, "_run", fake_run)
+    searched = np.eye(len(D), dtype=bool)
+    done = np.eye(len(D), dtype=bool)
+    for i, j in pairwise._candidate_pairs(noisy, 1):
+        searched[i, j] = searched[j, i] = done[i, j] = done[j, i] = True
+        R[i, j] = R[j, i] = D[i, j]
+    for (i, j), v in known.items():
+        done[i, j] = done[j, i] = True
+        R[i, j] = R[j, i] = v
+    if shared:
+        searched = done.copy()
+    pairwise._descent_runs(None, 1, searched, done, lambda: R, frozenset(), 1, False, "", {}, put)
+    return searched, run
+
+
+def test_a_descent_searches_the_same_pairs_whatever_else_is_known(monkeypatch):
+    # a run resumed from a store that holds pairs of a later round (or any other pair) searches
+    # what an uninterrupted run searches: the rounds follow the pairs they searched
+    searched, run = _descent_on_points(monkeypatch, {})
+    assert run and not searched.all()
+    x = np.random.default_rng(3).normal(size=(14, 2))
+    D = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    changed = 0
+    for i, j in zip(*np.nonzero(np.triu(~np.eye(14, dtype=bool), 1))):
+        known = {(int(i), int(j)): float(D[i, j])}
+        again, run_again = _descent_on_points(monkeypatch, known)
+        np.testing.assert_array_equal(again, searched)
+        assert sorted(run_again) == sorted(ij for ij in run if ij != (i, j))
+        # the known pair read as searched would steer the rounds elsewhere for some pairs
+        steered, _ = _descent_on_points(monkeypatch, known, shared=True)
+        plus = searched.copy()
+        plus[i, j] = plus[j, i] = True
+        changed += not np.array_equal(steered, plus)
+    assert changed > 0

@@ -560,7 +560,10 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
                         for ij, value in zip(pairs, runs):
                             put(ij, value)
                             done[ij] = done[ij[::-1]] = True
-                        skipped -= _descent_runs(prepared, k, done, lambda: _ranked_values(
+                        searched = np.eye(n, dtype=bool)   # the first stage's pairs, known or run
+                        for i, j in first:
+                            searched[i, j] = searched[j, i] = True
+                        skipped -= _descent_runs(prepared, k, searched, done, lambda: _ranked_values(
                             rank_by, S, rel, trim), keep, jobs, progress, desc, options, put)
                         pairs, runs = [], []   # every pair put already
                 elif k is None:
@@ -633,19 +636,25 @@ def _descent_pairs(R: np.ndarray, matched: np.ndarray, m: int) -> list[tuple[int
     return [(int(i), int(j)) for i, j in np.argwhere(np.triu(new, 1))]
 
 
-def _descent_runs(prepared, k, done, ranked, keep, jobs, progress, desc, options, put) -> int:
+def _descent_runs(prepared, k, searched, done, ranked, keep, jobs, progress, desc, options, put) -> int:
     """The neighbour descent's rounds (:func:`_descent_pairs` with ``m = ceil(DESCENT k)``) from
-    the pairs ``done``: each round's pairs matched, ``put`` and marked ``done`` before the next
-    is chosen, until a round finds none. Returns how many pairs the rounds matched."""
+    the first stage's pairs ``searched``, until a round finds none: each round's pairs marked
+    ``searched``, those not ``done`` (known or recorded before) matched, ``put`` and marked
+    ``done`` before the next round is chosen. The rounds follow the searched pairs only, so a
+    run resumed from a store that holds some of its pairs (or more) searches the same pairs.
+    Returns how many pairs the rounds matched."""
     m = min(int(np.ceil(DESCENT * k)), len(done) - 1)
     matched, rounds = 0, 0
     while True:
-        todo = _descent_pairs(ranked(), done, m)
+        todo = _descent_pairs(ranked(), searched, m)
         if not todo:
             return matched
         rounds += 1
+        for ij in todo:
+            searched[ij] = searched[ij[::-1]] = True
+        todo = [ij for ij in todo if not done[ij]]
         got = _run(prepared, todo, keep, jobs, progress, f"{desc} (neighbour descent, round {rounds})",
-                   options, matrix=True)
+                   options, matrix=True) if todo else []
         for ij, value in zip(todo, got):
             put(ij, value)
             done[ij] = done[ij[::-1]] = True
