@@ -172,8 +172,8 @@ def anchors_table() -> str:
         f"| dense map, {len(rem['pairs'])} TOSCA pairs each remeshed on its own ({len(rem['classes'])} classes): "
         f"mean; median | {tr['ours_dense']['mean']:.2f}; {tr['ours_dense']['median']:.2f} | "
         f"{tr['pyfm_dense']['mean']:.2f}; {tr['pyfm_dense']['median']:.2f} (pyFM) |",
-        f"| dense map, a shape against itself: remeshed at another density; with 20 holes; with 3 welds "
-        f"(both directions): mean; median | "
+        "| dense map, a shape against itself: remeshed at another density; with 20 holes; with 3 welds "
+        "(both directions): mean; median | "
         + "; ".join(f"{d['ours_dense']['mean']:.2f}, {d['ours_dense']['median']:.2f}"
                     for d in (tdn, pert["holes"]["summary"], pert["weld"]["summary"])) + " | "
         + "; ".join(f"{d['pyfm_dense']['mean']:.2f}, {d['pyfm_dense']['median']:.2f}"

@@ -64,7 +64,6 @@ def write_off(path: Path, v: np.ndarray, f: np.ndarray) -> None:
 
 
 def main(argv=None) -> int:
-    import gromov
     from gromov.experiments import datasets
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -689,11 +689,6 @@ def test_two_shapes_prepared_with_different_metrics_warn():
         match(raw, same, n_samples=10)
 
 
-import gromov
-from gromov.gh import ShapeMetric
-from gromov.gmds import SurfacePoints
-
-
 def test_locate_tries_each_input_face_once_with_the_same_result(tosca_cat0):
     """ShapeMetric.locate projects each point among the input faces around the input vertices
     its three rings own, each face once: the same faces and coordinates as trying every

@@ -74,7 +74,7 @@ RESEAT_ROUNDS = 3
 #: in six readings of seven, e.g. synthetic welds 0.988 -> 1.427 (``.venv/bin/python
 #: benchmarks/studies/bench_rank_residual.py``, "difference @1" against "@0.5"; see
 #: docs/design/recognition.md).
-from ._defaults import RANK_TAU_SCALE  # noqa: E402
+from ._defaults import RANK_TAU_SCALE  # noqa: E402, F401 (documented here)
 #: How recognition summarises the residuals of a correspondence (see
 #: :func:`gromov.experiments.gh_matrix`'s ``rank_residual``): ``"log"``, the trimmed RMS of the log ratios of corresponding distances
 #: (:func:`gromov.gmds.log_ratio_residuals`, a multiplicative distortion), or
@@ -82,7 +82,7 @@ from ._defaults import RANK_TAU_SCALE  # noqa: E402
 #: Chosen on the validation sets: the diffusion margin is larger in seven readings of eight and
 #: equal in the eighth (``.venv/bin/python benchmarks/studies/bench_rank_residual.py``; see
 #: docs/design/recognition.md).
-from ._defaults import RANK_RESIDUAL  # noqa: E402
+from ._defaults import RANK_RESIDUAL  # noqa: E402, F401 (documented here)
 from ._defaults import RANK_RESIDUALS  # noqa: E402
 #: The floor of :func:`gromov.gmds.log_ratio_residuals` in recognition, a fraction of the larger
 #: diameter: keeps the ratio finite where two points coincide (0.01-0.1 changed no validation
