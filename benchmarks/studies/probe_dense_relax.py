@@ -1,7 +1,8 @@
 """The local isometry step after the dense refinement: which neighbourhood, which cap.
 
 Run:  .venv/bin/python benchmarks/studies/probe_dense_relax.py --remeshed R [--data DIR]
-          [--sets topkids,remeshed,perturbed] [--json benchmarks/studies/probe_dense_relax.json]
+          [--sets topkids,remeshed,perturbed] [--schedules "4:4;8:8,4:4"] [--max-rings N]
+          [--json benchmarks/studies/probe_dense_relax.json]
 
 R is the folder ``benchmarks/remesh.py --out R`` fills. On the pairs of ``bench_dense.py`` (its
 functions: TOPKIDS kidXX -> kid00; TOSCA poses remeshed on their own and pose 0 at two densities;
@@ -12,7 +13,10 @@ neighbourhood's radius ``edges`` (mean edges of the coarser mesh) and the cap of
 (None: plain squares; else in the same unit). Error x 100 / sqrt(area) by
 :func:`gromov.evaluate.dense_error` (the better of direct and mirrored) on the same ``--points``
 random vertices of X (seeded) for every variant, the mean per map; per set the mean of the maps'
-means, and how many maps each variant makes worse than the refined map.
+means, and how many maps each variant makes worse than the refined map. With ``--schedules`` each
+variant is several steps run in turn (``edges:cap``, e.g. wider neighbourhoods first), with
+``--max-rings`` raising :data:`gromov.dense.RELAX_MAX_RINGS` for them
+(``probe_dense_relax_schedules.json``).
 No pyFM run: the anchor is in ``bench_dense.py``.
 """
 
@@ -39,7 +43,20 @@ from gromov.dense import relax_isometric  # noqa: E402
 VARIANTS = ((3, None), (4, None), (5, None), (3, 3), (4, 4), (5, 5))
 
 
-def scorer(points: int):
+def parse_schedules(text: str) -> list[tuple[tuple[float, float | None], ...]]:
+    """``"8:8,4:4;12:12,8:8,4:4"`` -> variants of several steps, each ``(edges, cap)`` run on the
+    result of the one before (``cap`` ``none``: plain squares)."""
+    out = []
+    for variant in filter(None, text.split(";")):
+        steps = []
+        for step in variant.split(","):
+            edges, cap = step.split(":")
+            steps.append((float(edges), None if cap == "none" else float(cap)))
+        out.append(tuple(steps))
+    return out
+
+
+def scorer(points: int, variants=None):
     """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores our map and its
     relaxed variants on ``points`` random vertices of X with a truth, and returns the row."""
     def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
@@ -59,10 +76,12 @@ def scorer(points: int):
             return 100 * B.dense_error(face, bary, y, tr[ok], sym, fmm=fmm).mean
 
         row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
-        for edges, cap in VARIANTS:
-            key = f"edges {edges}, cap {cap}"
+        for steps in variants or [((e, c),) for e, c in VARIANTS]:
+            key = " then ".join(f"edges {e:g}, cap {c if c is None else f'{c:g}'}" for e, c in steps)
             t = time.perf_counter()
-            relaxed = relax_isometric(x, y, T, edges=edges, cap=cap)
+            relaxed = T
+            for edges, cap in steps:
+                relaxed = relax_isometric(x, y, relaxed, edges=edges, cap=cap)
             row["seconds"][key] = time.perf_counter() - t
             row["variants"][key] = error(relaxed)
         print(f"  {name:<28} refined {row['refined']:.3f}  "
@@ -87,14 +106,21 @@ def main(argv=None) -> int:
     ap.add_argument("--remeshed", required=True, help="the folder benchmarks/remesh.py --out filled")
     ap.add_argument("--sets", default="topkids,remeshed,perturbed")
     ap.add_argument("--points", type=int, default=2000, help="vertices of X scored per map")
+    ap.add_argument("--schedules", default=None, help="variants of several steps instead of VARIANTS, e.g. "
+                    "'4:4;8:8,4:4' (edges:cap of each step, run in turn; steps of a variant by ',', variants by ';')")
+    ap.add_argument("--max-rings", type=int, default=None, help="gromov.dense.RELAX_MAX_RINGS for the run")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_relax.json"))
     args = ap.parse_args(argv)
+    variants = parse_schedules(args.schedules) if args.schedules else None
+    if args.max_rings is not None:
+        gromov.dense.RELAX_MAX_RINGS = args.max_rings
     data, folder = Path(args.data), Path(args.remeshed)
-    out = {"variants": [list(v) for v in VARIANTS], "points": args.points, "sets": {}}
+    out = {"variants": [[list(step) for step in v] for v in variants] if variants else [list(v) for v in VARIANTS],
+           "max_rings": gromov.dense.RELAX_MAX_RINGS, "points": args.points, "sets": {}}
     for name in args.sets.split(","):
         if name not in ("topkids", "remeshed", "perturbed"):
             ap.error(f"unknown set {name!r}")
-    parts = B.study_sets(args.sets.split(","), data, folder, scorer(args.points))
+    parts = B.study_sets(args.sets.split(","), data, folder, scorer(args.points, variants))
     for part, part_rows in parts.items():
         out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
         s = out["sets"][part]["summary"]
