@@ -604,12 +604,11 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     if bad:
         raise ValueError(f"known needs pairs of two candidates (positions below {len(candidates)}), got {bad[0]}")
     if n_first is not None:   # no bound, profile or triangle estimate: none is read or computed
-        from .spectrum import SPECTRUM_WEIGHT, signature_distance, spectrum
+        from .spectrum import SPECTRUM_WEIGHT
 
-        spectral = signature_distance(spectrum(query_shape), np.array([c.spectrum() for c in candidates]))
-        return _two_stage(query_shape, candidates, k, n_first, spectral, SPECTRUM_WEIGHT if combine else None,
-                          rank_by, known, recorded(options) if recorded is not None else {}, metric, options,
-                          progress)
+        return _two_stage(query_shape, candidates, k, n_first, _spectral_to(query_shape, candidates),
+                          SPECTRUM_WEIGHT if combine else None, rank_by, known,
+                          recorded(options) if recorded is not None else {}, metric, options, progress)
     if triangle is not None:   # the candidates' known pairs, pivots for the query (node -1)
         at = 2 if rank_by == "trimmed" else 1
         for (i, j), v in (recorded(options) if recorded is not None else {}).items():
@@ -627,9 +626,9 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     spectral = weight = None
     keys = _keys(bounds, gaps, prune, slack)
     if combine:   # S^w B^(1 - w) <= S^w G^(1 - w) wherever B <= G
-        from .spectrum import SPECTRUM_WEIGHT, combined, signature_distance, spectrum
+        from .spectrum import SPECTRUM_WEIGHT, combined
 
-        spectral = signature_distance(spectrum(query_shape), np.array([c.spectrum() for c in candidates]))
+        spectral = _spectral_to(query_shape, candidates)
         weight = SPECTRUM_WEIGHT
         keys = np.where(np.isfinite(keys), spectral**weight * np.maximum(keys, 0.0) ** (1.0 - weight), keys)
     todo = np.arange(len(candidates))
@@ -656,6 +655,14 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
                          prune == "bound" or prune == "none", "combined" if combine else rank_by, n_known)
 
 
+def _spectral_to(query_shape, candidates) -> np.ndarray:
+    """The spectral distance (:func:`gromov.spectrum.signature_distance`) from the query to each
+    candidate."""
+    from .spectrum import signature_distance, spectrum
+
+    return signature_distance(spectrum(query_shape), np.array([c.spectrum() for c in candidates]))
+
+
 def _two_stage(query_shape, candidates, k, n_first, spectral, weight, rank_by, known, recorded, metric, options,
                progress) -> NearestResult:
     """:func:`nearest` with ``candidates``: the ``n_first`` nearest by ``spectral`` matched, then
@@ -668,6 +675,7 @@ def _two_stage(query_shape, candidates, k, n_first, spectral, weight, rank_by, k
     from .spectrum import combined, signature_distance
 
     n = len(candidates)
+
     def spectral_between(i, j):
         sig = {a: candidates[a].spectrum() for a in np.unique(np.r_[i, j]).tolist()}
         return np.array([signature_distance(sig[a], sig[b]) for a, b in zip(i.tolist(), j.tolist())])
