@@ -465,3 +465,21 @@ def test_eccentricity_study_quantiles_and_first_stage():
     m = {"C": C, "S": C, "E": C.max() - C + np.eye(25)}
     assert st.first_stage(m, {"S": 1}, ks=(10,))["K10"] == 1.0
     assert st.first_stage(m, {"E": 1}, ks=(10,))["K10"] == 0.0
+
+
+def test_one_query_descent_read_off_the_complete_matrix():
+    """Each shape the query of a store of the others: with every other shape in its first stage
+    the search is brute force; with the first stage alone (factor 0) it matches C shapes a query;
+    the descent matches a superset of them, so a query that was exact stays exact."""
+    st = _module("recognition_two_stage")
+    rng = np.random.default_rng(1)
+    n = 14
+    x = rng.normal(size=(n, 2))
+    D = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    S = D[::-1, ::-1].copy()   # a first stage that disagrees with D
+    full = st.query_descent(D, S, n - 1, 3, 1.5)
+    assert full["top_equal_list"] == 1.0 and full["pairs_per_query"] == n - 1 and full["collection"] == n - 1
+    first = st.query_descent(D, S, 2, 3, 0.0)
+    assert first["pairs_per_query"] == 2 and first["top_equal_list"] < 1.0
+    down = st.query_descent(D, S, 2, 3, 1.5)
+    assert down["pairs_per_query"] > 2 and down["top_equal_list"] >= first["top_equal_list"]

@@ -315,3 +315,18 @@ def test_a_descent_searches_the_same_pairs_whatever_else_is_known(monkeypatch):
         plus[i, j] = plus[j, i] = True
         changed += not np.array_equal(steered, plus)
     assert changed > 0
+
+
+def test_search_says_whether_it_descended(tmp_path, capsys):
+    files = _sheet_files(tmp_path)
+    store = str(tmp_path / "store")
+    opts = ["--metric", "geodesic", "--resolution", "1000", "--samples", "15", "--rank-by", "combined"]
+    assert main(["index", *files, "--store", store, *opts[:4], "-q"]) == 0
+    search = ["search", files[0], "--store", store, *opts, "-k", "1", "--candidates", "1", "-q"]
+    capsys.readouterr()
+    assert main(search) == 0
+    assert "no distances between them recorded" in capsys.readouterr().out
+    assert main(["pairwise", *files, "--store", store, *opts, "--candidates", "1", "-k", "1", "-q"]) == 0
+    capsys.readouterr()
+    assert main(search) == 0
+    assert "then neighbour descent over" in capsys.readouterr().out

@@ -114,7 +114,10 @@ def cmd_search(args) -> int:
     n = r.full_matches + r.skipped
     what = _RANKED_WORDS[args.rank_by]
     if args.candidates is not None:
-        how = f"the {args.candidates} nearest by spectral distance matched: not exact"
+        how = f"the {args.candidates} nearest by spectral distance matched" + (
+            f", then neighbour descent over {r.known_pairs:,} recorded distances between them" if r.known_pairs else
+            "; no distances between them recorded for a neighbour descent (gromov pairwise --store records them)") \
+            + ": not exact"
     else:
         how = ("exact" if r.exact else "by the profile gap" + (f" and {r.known_pairs:,} recorded distances between "
                                                               "them" if r.known_pairs else "") + ": not exact")
