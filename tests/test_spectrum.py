@@ -261,6 +261,12 @@ def test_search_a_store_descends_over_the_pairs_pairwise_recorded(tmp_path, caps
     assert res["full_matches"] + res["skipped"] == 4
 
 
+def _plane_distances(rng) -> np.ndarray:
+    """Distances between 14 random points of the plane (the first draws of ``rng``)."""
+    x = rng.normal(size=(14, 2))
+    return np.linalg.norm(x[:, None] - x[None], axis=-1)
+
+
 def _descent_on_points(monkeypatch, known: dict, shared: bool = False) -> tuple[np.ndarray, list]:
     """:func:`_descent_runs` over 14 random points of the plane ranked by their distances, the first
     stage each point's nearest by a noisy copy of them, ``known`` pairs given before; ``shared``:
@@ -268,8 +274,7 @@ def _descent_on_points(monkeypatch, known: dict, shared: bool = False) -> tuple[
     from gromov.experiments import pairwise
 
     rng = np.random.default_rng(3)
-    x = rng.normal(size=(14, 2))
-    D = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    D = _plane_distances(rng)
     noisy = D + rng.uniform(0.0, 1.5, size=D.shape)
     R = np.full(D.shape, np.nan)
     run = []
@@ -301,8 +306,7 @@ def test_a_descent_searches_the_same_pairs_whatever_else_is_known(monkeypatch):
     # what an uninterrupted run searches: the rounds follow the pairs they searched
     searched, run = _descent_on_points(monkeypatch, {})
     assert run and not searched.all()
-    x = np.random.default_rng(3).normal(size=(14, 2))
-    D = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    D = _plane_distances(np.random.default_rng(3))
     changed = 0
     for i, j in zip(*np.nonzero(np.triu(~np.eye(14, dtype=bool), 1))):
         known = {(int(i), int(j)): float(D[i, j])}
