@@ -86,13 +86,17 @@ def main(argv=None) -> int:
         n = len(rest)
         rows = []
         digest = {i: file_sha256(str(files[i])) for i in rest}   # the store keeps one entry per content
+        at = {files[i].name: i for i in rest}
+
+        def content(neighbors) -> list:
+            return [digest[at[Path(nb.name).name]] for nb in neighbors]
+
         for q in queries:
             t = time.perf_counter()
             r = nearest(str(files[q]), str(args.store), k=args.top, candidates=args.candidates,
                         rank_by="combined", **shape)
             seconds = time.perf_counter() - t
-            at = {files[i].name: i for i in rest}
-            ours = [digest[at[Path(nb.name).name]] for nb in r.neighbors]
+            ours = content(r.neighbors)
             matrix = _distinct([digest[rest[j]] for j in np.argsort(D[q, rest], kind="stable")], args.top)
             row = {"query": files[q].name, "matched": r.full_matches, "candidates_in_store": r.full_matches + r.skipped,
                    "known_pairs": r.known_pairs, "seconds": seconds, "top_equal_matrix": ours == matrix,
@@ -102,9 +106,8 @@ def main(argv=None) -> int:
                 t = time.perf_counter()
                 b = nearest(str(files[q]), str(args.store), k=args.top, rank_by="combined", prune="none", **shape)
                 row["brute_seconds"] = time.perf_counter() - t
-                row["top_equal_brute_force"] = ours == [digest[at[Path(nb.name).name]] for nb in b.neighbors]
-                row["values_equal_brute_force"] = all(
-                    v == b.values[j] for j, v in r.values.items())
+                row["top_equal_brute_force"] = ours == content(b.neighbors)
+                row["values_equal_brute_force"] = all(v == b.values[j] for j, v in r.values.items())
             rows.append(row)
             print(f"{files[q].name:<22} {r.full_matches:>3} matched in {seconds:5.1f} s, top {args.top} "
                   f"{'as' if row['top_equal_matrix'] else 'not as'} the matrix's"

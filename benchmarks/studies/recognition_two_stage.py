@@ -222,10 +222,7 @@ def query_descent(D: np.ndarray, S: np.ndarray, c: int, top: int, factor: float)
     for q in range(n):
         rest = np.delete(np.arange(n), q)
         Dr = D[np.ix_(rest, rest)]
-        matched = np.eye(n - 1, dtype=bool)
-        for i, j in _candidate_pairs(S[np.ix_(rest, rest)], c):
-            matched[i, j] = matched[j, i] = True
-        closed, _ = descent_closure(Dr, matched, m)
+        closed, _ = descent_closure(Dr, matched_by_candidates(S[np.ix_(rest, rest)], c), m)
         graph = _nearest_lists(np.where(closed & ~np.eye(n - 1, dtype=bool), Dr, np.nan), m)
         d = D[q, rest]
         values = {int(j): float(d[j]) for j in np.argsort(S[q, rest], kind="stable")[:c]}
@@ -383,8 +380,8 @@ def main(argv=None) -> None:
                     for t in rows:
                         t["estimated_seconds"] = row["seconds_prepare"] + t["pairs"] * per_pair
                 res["descent"][c][rank] = rows
-            res["descent"][c]["query"] = [query_descent(mats[c]["combined"], mats[c]["spectral"], cc, top, f)
-                                          for top, f, cc in QUERY_DESCENTS]
+        res["query_descent"] = {c: [query_descent(mats[c]["combined"], mats[c]["spectral"], cc, top, f)
+                                    for top, f, cc in QUERY_DESCENTS] for c in names}
     if args.measured is not None:
         npz, results = str(args.measured).split(",")
         z = np.load(npz)
@@ -410,14 +407,13 @@ def main(argv=None) -> None:
     for t in res["adaptive"]:
         print(f"adaptive, first {t['first']}, floor q {t['quantile']}: {t['pairs']} pairs, top-{args.top} equal "
               f"{t['top_equal_list']:.3f}, NN {t['nn']:.3f}")
-    for c, ranks in res.get("descent", {}).items():
-        for t in ranks.get("query", []):
+    for c, rows in res.get("query_descent", {}).items():
+        for t in rows:
             print(f"{c} one query (combined) top {t['top']} m {t['m']} C {t['candidates']}: top equal "
                   f"{t['top_equal_list']:.3f} ({t['queries_differing']} differ), {t['pairs_per_query']:.1f} pairs a "
                   f"query (at most {t['pairs_per_query_max']}) of {t['collection']}")
+    for c, ranks in res.get("descent", {}).items():
         for rank, rows in ranks.items():
-            if rank == "query":
-                continue
             for t in rows:
                 print(f"{c} descent ({rank}) top {t['top']} m {t['m']} C {t['candidates']}: {t['rounds']} rounds, "
                       f"{t['pairs']} pairs, top equal {t['top_equal_list']:.3f} ({t['queries_differing']} differ)"
