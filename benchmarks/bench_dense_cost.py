@@ -10,7 +10,9 @@ factorisation the input eigensolve used ("cholmod" with ``cholespy`` installed, 
 each input mesh's Laplace-Beltrami eigenpairs, computed once per shape: the default row
 computes them afresh on every run (a new pair of shapes, as ``gromov match`` on two files),
 the row "input eigenpairs cached" reuses them (a shape matched again), and "not relaxed,
-eigenpairs cached" leaves out the local isometry step (``gromov.dense.DENSE_RELAX = False``).
+eigenpairs cached" leaves out the local isometry step (``gromov.dense.DENSE_RELAX = False``), and
+"one inverse round, eigenpairs cached" adds a round of :func:`gromov.dense.consistent_maps`
+(``gromov.dense.DENSE_INVERSE = 1``).
 
 Then the two eigendecompositions alone (``INPUT_K`` eigenpairs each), the ways measured taking turns
 in each of ``--repeat`` rounds: scipy's ``eigsh(L, k, M, sigma)`` as it comes (SuperLU,
@@ -42,10 +44,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from _common import add_data_argument, write_results  # noqa: E402
 
-#: row -> (``match(..., dense=)``, input eigenpairs kept from the run before, local isometry step)
-MODES = {"sparse": (False, False, True), "placed": ("placed", False, True), "zoomout": ("zoomout", False, True),
-         "dense (default)": (True, False, True), "input eigenpairs cached": (True, True, True),
-         "not relaxed, eigenpairs cached": (True, True, False)}
+#: row -> (``match(..., dense=)``, input eigenpairs kept from the run before, local isometry step,
+#: rounds of each direction offered the other's inverse: None, the default)
+MODES = {"sparse": (False, False, True, None), "placed": ("placed", False, True, None),
+         "zoomout": ("zoomout", False, True, None), "dense (default)": (True, False, True, None),
+         "input eigenpairs cached": (True, True, True, None),
+         "not relaxed, eigenpairs cached": (True, True, False, None),
+         "one inverse round, eigenpairs cached": (True, True, True, 1)}
 
 
 def main(argv=None) -> int:
@@ -62,8 +67,8 @@ def main(argv=None) -> int:
     factorisation = _spd_solver(sp.identity(3, format="csr"))[1]
     print(f"  input eigensolve: ARPACK shift-invert, {factorisation} factorisation")
     seconds, medians = {}, {}
-    relax_default = gromov.dense.DENSE_RELAX
-    for name, (dense, cached, relax) in MODES.items():
+    relax_default, inverse_default = gromov.dense.DENSE_RELAX, gromov.dense.DENSE_INVERSE
+    for name, (dense, cached, relax, inverse) in MODES.items():
         runs = []
         for _ in range(args.repeat):
             if not cached:
@@ -71,12 +76,13 @@ def main(argv=None) -> int:
                     assert s.for_correspondence() is s
                     s._input_basis = s._input_rings = s._relax_rings = None
             gromov.dense.DENSE_RELAX = relax
+            gromov.dense.DENSE_INVERSE = inverse_default if inverse is None else inverse
             try:
                 t = time.perf_counter()
                 gromov.match(sx, sy, dense=dense)
                 runs.append(time.perf_counter() - t)
             finally:
-                gromov.dense.DENSE_RELAX = relax_default
+                gromov.dense.DENSE_RELAX, gromov.dense.DENSE_INVERSE = relax_default, inverse_default
         seconds[name], medians[name] = min(runs), statistics.median(runs)
         print(f"  {name:16s} {seconds[name]:.3f} s (median {medians[name]:.3f} s)")
     added = seconds["dense (default)"] - seconds["sparse"]
@@ -84,6 +90,8 @@ def main(argv=None) -> int:
           f"{seconds['input eigenpairs cached'] - seconds['sparse']:.3f} s with the eigenpairs cached)")
     print(f"  the local isometry step (gromov.dense.DENSE_RELAX) adds "
           f"{seconds['input eigenpairs cached'] - seconds['not relaxed, eigenpairs cached']:.3f} s")
+    print(f"  one round of each direction offered the other's inverse (gromov.dense.DENSE_INVERSE = 1) adds "
+          f"{seconds['one inverse round, eigenpairs cached'] - seconds['input eigenpairs cached']:.3f} s")
     added_median = medians["dense (default)"] - medians["sparse"]
     print(f"  medians: the dense maps add {added_median:.3f} s")
     eigensolve = eigensolves([sx.working, sy.working], args.repeat)

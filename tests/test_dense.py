@@ -765,7 +765,8 @@ def test_relax_reads_no_vertex_order():
 def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     """wolf0 -> wolf1 of TOSCA (one triangulation, so the truth is each vertex itself): the
     local isometry step after the refinement brings more vertices to their very image and
-    lowers the mean error; the default dense map is the refined map so relaxed."""
+    lowers the mean error; the default dense map is the refined map so relaxed (then given
+    DENSE_INVERSE rounds of the other direction's inverse, none by default)."""
     import gromov.dense as dense
     from gromov.dense import _at_vertices, relax_isometric
 
@@ -777,7 +778,9 @@ def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     r = gromov.match(a, b, dense=True)
     refined = b.from_input_ids(r.x_to_y_dense_vertex[a.input_ids])
     relaxed = relax_isometric(a, b, refined)
-    np.testing.assert_array_equal(default, relaxed)
+    back = relax_isometric(b, a, a.from_input_ids(r.y_to_x_dense_vertex[b.input_ids]))
+    rounds = dense.DENSE_INVERSE
+    np.testing.assert_array_equal(default, dense.consistent_maps(a, b, relaxed, back, rounds=rounds)[0])
     errors = [dense_error(*_at_vertices(b, t), b, ids).mean for t in (refined, relaxed)]
     assert np.mean(relaxed == ids) > np.mean(refined == ids) + 0.03
     assert errors[1] < 0.8 * errors[0]
@@ -799,3 +802,108 @@ def test_relax_neighbourhoods_are_kept_per_shape(monkeypatch):
     monkeypatch.setattr(dense, "ring_neighbourhoods", lambda m, r: built.append(r) or real(m, r))
     np.testing.assert_array_equal(dense.relax_isometric(sx, sy, shaken), first)
     assert built == [1]   # Y's one ring only
+
+
+def test_inverse_map_of_a_bijection_is_its_inverse():
+    """S a bijection Y -> X (a permuted copy): every vertex of X has one preimage, and the
+    inverse read off S is S's inverse, whatever T was."""
+    from gromov.dense import inverse_map
+
+    x = bumpy_torus()
+    y, perm = permutation_of(x, 4)   # vertex j of y is vertex perm[j] of x
+    inv = inverse_map(x, y, perm, np.zeros(x.n_vertices, dtype=np.int64))
+    np.testing.assert_array_equal(perm[inv], np.arange(x.n_vertices))
+    with pytest.raises(ValueError, match="S must hold one vertex of X"):
+        inverse_map(x, y, perm[:-1], inv)
+
+
+def test_inverse_map_fills_vertices_without_preimages_from_their_neighbours():
+    """S from a coarser copy of the surface reaches only some vertices of X; the others go to
+    the vertex of Y nearest their neighbours' images: on one surface at two densities, with S
+    each coarse vertex's nearest fine vertex, almost every fine vertex goes to a vertex of the
+    coarse mesh within one coarse edge of it."""
+    from scipy.spatial import cKDTree
+
+    from gromov.dense import inverse_map
+
+    fine = bumpy_torus()
+    c = gromov.simplify(fine, 200).mesh
+    coarse = Mesh(c.vertices, c.faces)
+    S = cKDTree(fine.vertices).query(coarse.vertices)[1]
+    reached = np.isin(np.arange(fine.n_vertices), S)
+    assert reached.mean() < 0.5
+    inv = inverse_map(fine, coarse, S, np.zeros(fine.n_vertices, dtype=np.int64))
+    off = np.linalg.norm(coarse.vertices[inv] - fine.vertices, axis=1)
+    assert np.mean(off < coarse.mean_edge_length) > 0.95
+    assert np.mean(inv == 0) < 0.05   # T kept only where no neighbour is reached
+
+
+def test_isometric_stress_is_zero_at_an_isometry_and_counts_a_moved_image():
+    """The identity onto a copy scaled by 2 has no stress; moving one image raises the stress of
+    that vertex and of its neighbours only."""
+    from gromov.dense import isometric_stress, ring_neighbourhoods
+
+    x = bumpy_torus()
+    y = Mesh(2.0 * x.vertices, x.faces)
+    ids = np.arange(x.n_vertices)
+    np.testing.assert_allclose(isometric_stress(x, y, ids), 0.0, atol=1e-18)
+    ptr, nbr = ring_neighbourhoods(x, 1)
+    moved = ids.copy()
+    moved[0] = nbr[ptr[0]:ptr[1]][nbr[ptr[0]:ptr[1]] != 0][0]
+    e = isometric_stress(x, y, moved)
+    assert e[0] > 0
+    rptr, rids = ring_neighbourhoods(x, 8)
+    near = set(rids[rptr[0]:rptr[1]])
+    assert all(i in near for i in np.flatnonzero(e > 0))
+
+
+def test_consistent_maps_repair_a_slid_map_from_the_other_direction():
+    """T: X -> Y with a patch put on the wrong side of the torus (a local minimum of the
+    one-edge moves) and S: Y -> X exact: the inverse of S is the identity, of no stress, so T
+    becomes the identity and S stays; both directions read alike (swapping X and Y swaps the
+    result) and no vertex order is read."""
+    from gromov.dense import consistent_maps, relax_isometric, ring_neighbourhoods
+
+    x = bumpy_torus()
+    y = Mesh(1.5 * x.vertices, x.faces)
+    ids = np.arange(x.n_vertices)
+    ptr, nbr = ring_neighbourhoods(x, 3)
+    patch = nbr[ptr[0]:ptr[1]]
+    far = int(np.argmax(np.linalg.norm(x.vertices - x.vertices[0], axis=1)))
+    T = ids.copy()
+    T[patch] = far
+    assert not np.array_equal(relax_isometric(x, y, T), ids)   # one-edge moves cannot bring it home
+    t, s = consistent_maps(x, y, T, ids)   # one round
+    np.testing.assert_array_equal(t, ids)
+    np.testing.assert_array_equal(s, ids)
+    s2, t2 = consistent_maps(y, x, ids, T)
+    np.testing.assert_array_equal(t2, t)
+    np.testing.assert_array_equal(s2, s)
+    xp, perm = permutation_of(x, 9)   # vertex j of xp is vertex perm[j] of x
+    inv = np.argsort(perm)
+    tp, sp = consistent_maps(xp, y, T[perm], inv[ids])
+    np.testing.assert_array_equal(tp, t[perm])
+    np.testing.assert_array_equal(sp, inv[s])
+    np.testing.assert_array_equal(consistent_maps(x, y, T, ids, rounds=0)[0], T)
+    with pytest.raises(ValueError, match="rounds must be"):
+        consistent_maps(x, y, T, ids, rounds=-1)
+
+
+def test_dense_maps_give_both_relaxed_maps_their_inverse_rounds(monkeypatch):
+    """``DENSE_INVERSE = R`` makes the dense maps :func:`consistent_maps` of the two relaxed
+    maps after R rounds; on one surface at two densities the rounds change a map."""
+    import trimesh
+
+    import gromov.dense as dense
+
+    x = bumpy_torus()
+    fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()   # 4 times the faces
+    y = Mesh(fine.vertices, fine.faces)
+    monkeypatch.setattr(dense, "DENSE_INVERSE", 0)
+    r0 = gromov.match(x, y, dense=True)
+    monkeypatch.setattr(dense, "DENSE_INVERSE", 2)
+    r2 = gromov.match(x, y, dense=True)
+    t, s = dense.consistent_maps(x, y, r0.x_to_y_dense_vertex, r0.y_to_x_dense_vertex, rounds=2)
+    np.testing.assert_array_equal(r2.x_to_y_dense_vertex, t)
+    np.testing.assert_array_equal(r2.y_to_x_dense_vertex, s)
+    assert not (np.array_equal(t, r0.x_to_y_dense_vertex) and np.array_equal(s, r0.y_to_x_dense_vertex))
