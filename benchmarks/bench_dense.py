@@ -309,6 +309,7 @@ def run_perturbed(folder: Path, classes: list[str]) -> dict:
 def study_sets(sets, data: Path, folder: Path | None, evaluate) -> dict[str, list[dict]]:
     """The rows a study's own ``evaluate`` (called as :func:`evaluate_pair` is, returning its row)
     gives on each of ``sets``, split into parts: ``topkids`` (kidXX -> kid00: part ``topkids``),
+    ``tosca`` (the TOSCA pairs as given, both ways: part ``tosca``),
     ``remeshed`` (the TOSCA pairs on ``folder``'s copies: ``poses``, and pose 0 at two densities:
     ``densities``), ``perturbed`` (``holes`` and ``welds``). The benchmark's tables are not made;
     the exact map's errors that this benchmark adds to a density row are left out."""
@@ -329,6 +330,9 @@ def study_sets(sets, data: Path, folder: Path | None, evaluate) -> dict[str, lis
             if name == "topkids":
                 run_topkids(data, 25)
                 split = {"topkids": rows}
+            elif name == "tosca":
+                run_tosca(data, classes)
+                split = {"tosca": rows}
             elif name == "remeshed":
                 run_remeshed(data, folder, classes)
                 density = [r for r in rows if "-" in r["pair"].split("->")[0]]

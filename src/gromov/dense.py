@@ -50,7 +50,8 @@ __all__ = ["DenseMap", "dense_maps", "anchored_map", "local_anchored_map", "land
            "DENSE_REFINE", "DENSE_CANDIDATES", "DENSE_LOCAL", "DENSE_CHOICE", "CHOICE_K", "REFINEMENTS",
            "place_small_pieces", "PIECE_PATCH", "zoomout_energy", "refine_better", "placements_agree",
            "relax_isometric", "DENSE_RELAX", "RELAX_EDGES", "RELAX_CAP", "RELAX_SWEEPS", "RELAX_MAX_RINGS",
-           "isometric_stress", "inverse_map", "consistent_maps", "DENSE_INVERSE", "INVERSE_RINGS"]
+           "isometric_stress", "inverse_map", "consistent_maps", "DENSE_INVERSE", "INVERSE_RINGS",
+           "INVERSE_SWEEPS"]
 
 logger = logging.getLogger(__name__)
 
@@ -104,10 +105,12 @@ RELAX_MAX_RINGS = 8
 #: of the other direction's as new starts, kept where they lower the local stress
 #: (:func:`consistent_maps`; docs/design/dense.md, "Each direction from the other"). 0, the
 #: default: none. One round lowers the error on every set measured and relaxes two more starts
-#: per direction (1.2 s on two 28k-vertex cats).
+#: per direction (1.35 s on two 28k-vertex cats).
 DENSE_INVERSE = 0
 #: :func:`inverse_map`: a vertex without preimages takes the images of those within this many rings.
 INVERSE_RINGS = 2
+#: The sweeps of each start's local isometry step in those rounds, at most.
+INVERSE_SWEEPS = RELAX_SWEEPS
 #: The input meshes' eigenpairs from the working mesh's (:func:`prolonged_basis`): how many
 #: working eigenvectors per eigenpair wanted, and the subspace iterations on the input mesh.
 BASIS_GUARD, BASIS_ITERATIONS = 1.1, 1
@@ -1022,14 +1025,14 @@ def inverse_map(sx, sy, S: np.ndarray, T: np.ndarray, *, rings: int = INVERSE_RI
     return out
 
 
-def _better_start(sx, sy, T: np.ndarray, S: np.ndarray) -> np.ndarray:
+def _better_start(sx, sy, T: np.ndarray, S: np.ndarray, sweeps: int) -> np.ndarray:
     """T, or the lowest in local stress of two starts from S's inverse I, each relaxed: I
     itself, and T with I taken where I's vertex has the lower stress."""
     inv = inverse_map(sx, sy, S, T)
     here, there = isometric_stress(sx, sy, T), isometric_stress(sx, sy, inv)
     best, low = T, here.sum()
     for start in (inv, np.where(there < here, inv, T)):
-        relaxed = relax_isometric(sx, sy, start)
+        relaxed = relax_isometric(sx, sy, start, sweeps=sweeps)
         e = isometric_stress(sx, sy, relaxed).sum()
         if e < low:
             best, low = relaxed, e
@@ -1037,7 +1040,7 @@ def _better_start(sx, sy, T: np.ndarray, S: np.ndarray) -> np.ndarray:
 
 
 def consistent_maps(sx, sy, T: np.ndarray, S: np.ndarray, *, rounds: int = 1,
-                    pool=None) -> tuple[np.ndarray, np.ndarray]:
+                    sweeps: int = INVERSE_SWEEPS, pool=None) -> tuple[np.ndarray, np.ndarray]:
     """Input-vertex maps T: X -> Y and S: Y -> X, each offered the other's inverse.
 
     A relaxed map (:func:`relax_isometric`) sits in a local minimum of its stress: a region
@@ -1058,6 +1061,8 @@ def consistent_maps(sx, sy, T: np.ndarray, S: np.ndarray, *, rounds: int = 1,
         Vertex maps between the input meshes.
     rounds : int, default 1
         At most (:func:`dense_maps` runs :data:`DENSE_INVERSE`).
+    sweeps : int, default INVERSE_SWEEPS
+        Of each start's :func:`relax_isometric`, at most.
     pool : concurrent.futures.Executor, optional
         Runs the two directions of a round at once.
 
@@ -1069,10 +1074,10 @@ def consistent_maps(sx, sy, T: np.ndarray, S: np.ndarray, *, rounds: int = 1,
         raise ValueError(f"rounds must be a non-negative integer, got {rounds!r}")
     for _ in range(int(rounds)):
         if pool is None:
-            t, s = _better_start(sx, sy, T, S), _better_start(sy, sx, S, T)
+            t, s = _better_start(sx, sy, T, S, sweeps), _better_start(sy, sx, S, T, sweeps)
         else:
-            there = pool.submit(_better_start, sy, sx, S, T)
-            t = _better_start(sx, sy, T, S)
+            there = pool.submit(_better_start, sy, sx, S, T, sweeps)
+            t = _better_start(sx, sy, T, S, sweeps)
             s = there.result()
         if t is T and s is S:
             break
@@ -1353,7 +1358,7 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
             second_way = there.result()
         vx, vy = first[2], second_way[2]
         if inverse:
-            vx, vy = consistent_maps(sx, sy, vx, vy, rounds=inverse, pool=pool)
+            vx, vy = consistent_maps(sx, sy, vx, vy, rounds=inverse, sweeps=INVERSE_SWEEPS, pool=pool)
         return (finished(sx, sy, *first[:2], vx, vx is not first[2]),
                 finished(sy, sx, *second_way[:2], vy, vy is not second_way[2]))
 
