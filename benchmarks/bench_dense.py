@@ -83,6 +83,21 @@ def at_vertices(mesh: gromov.Mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return f, np.eye(3)[np.argmax(mesh.faces[f] == v[:, None], axis=1)]
 
 
+def random_point_error(x: gromov.Mesh, y: gromov.Mesh, truth: np.ndarray, sym, fmm, points: int):
+    """A study's scorer: the mean error x 100 / sqrt(area) of an input-vertex map X -> Y (indices
+    of ``y``) on the same ``points`` random vertices of X with a truth (seeded), the better of the
+    direct and mirrored readings as :func:`evaluate_pair` scores them."""
+    tr = truth[x.input_ids]
+    ok = np.flatnonzero(tr >= 0)
+    if len(ok) > points:
+        ok = np.sort(np.random.default_rng(0).choice(ok, points, replace=False))
+
+    def error(t: np.ndarray) -> float:
+        face, bary = at_vertices(y, t[ok])
+        return 100 * dense_error(face, bary, y, tr[ok], sym, fmm=fmm).mean
+    return error
+
+
 def pyfm_p2p(x: gromov.Mesh, y, reference=None) -> np.ndarray:
     """pyFM's quick-start map X -> Y: for each vertex index of ``x``, a vertex index of ``y``.
     ``reference``: a processed ``TriMesh`` of ``y`` (its spectrum is reused)."""

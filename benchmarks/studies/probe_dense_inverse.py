@@ -45,14 +45,7 @@ def scorer(points: int, rounds: int, sweeps: int):
         r = gromov.match(x, yref, dense=True)
         T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
         S = x.from_input_ids(r.y_to_x_dense_vertex[y.input_ids])
-        tr = truth[x.input_ids]
-        ok = np.flatnonzero(tr >= 0)
-        if len(ok) > points:
-            ok = np.sort(np.random.default_rng(0).choice(ok, points, replace=False))
-
-        def error(t):
-            face, bary = B.at_vertices(y, t[ok])
-            return 100 * B.dense_error(face, bary, y, tr[ok], sym, fmm=fmm).mean
+        error = B.random_point_error(x, y, truth, sym, fmm, points)
 
         row = {"pair": name, "default": error(T), "rounds": [], "seconds": [], "changed": []}
         for _ in range(rounds):

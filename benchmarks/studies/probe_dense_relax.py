@@ -66,14 +66,7 @@ def scorer(points: int, variants=None):
         finally:
             gromov.dense.DENSE_RELAX = relax
         T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
-        tr = truth[x.input_ids]
-        ok = np.flatnonzero(tr >= 0)
-        if len(ok) > points:
-            ok = np.sort(np.random.default_rng(0).choice(ok, points, replace=False))
-
-        def error(t):
-            face, bary = B.at_vertices(y, t[ok])
-            return 100 * B.dense_error(face, bary, y, tr[ok], sym, fmm=fmm).mean
+        error = B.random_point_error(x, y, truth, sym, fmm, points)
 
         row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
         for steps in variants or [((e, c),) for e, c in VARIANTS]:
