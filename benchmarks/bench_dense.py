@@ -83,6 +83,13 @@ def at_vertices(mesh: gromov.Mesh, v: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return f, np.eye(3)[np.argmax(mesh.faces[f] == v[:, None], axis=1)]
 
 
+def add_study_arguments(ap, sets: str = "topkids,remeshed,perturbed") -> None:
+    """The arguments the dense studies share: ``--remeshed``, ``--sets``, ``--points``."""
+    ap.add_argument("--remeshed", required=True, help="the folder benchmarks/remesh.py --out filled")
+    ap.add_argument("--sets", default=sets)
+    ap.add_argument("--points", type=int, default=2000, help="vertices of X scored per map")
+
+
 def random_point_error(x: gromov.Mesh, y: gromov.Mesh, truth: np.ndarray, sym, fmm, points: int):
     """A study's scorer: the mean error x 100 / sqrt(area) of an input-vertex map X -> Y (indices
     of ``y``) on the same ``points`` random vertices of X with a truth (seeded), the better of the

@@ -77,9 +77,7 @@ def summary(rows: list) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
-    ap.add_argument("--remeshed", required=True, help="the folder benchmarks/remesh.py --out filled")
-    ap.add_argument("--sets", default="topkids,remeshed,perturbed")
-    ap.add_argument("--points", type=int, default=2000, help="vertices of X scored per map")
+    B.add_study_arguments(ap)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--sweeps", type=int, default=INVERSE_SWEEPS, help="of each start's local isometry step")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_inverse.json"))

@@ -96,9 +96,7 @@ def summary(rows: list) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
-    ap.add_argument("--remeshed", required=True, help="the folder benchmarks/remesh.py --out filled")
-    ap.add_argument("--sets", default="topkids,remeshed,perturbed")
-    ap.add_argument("--points", type=int, default=2000, help="vertices of X scored per map")
+    B.add_study_arguments(ap)
     ap.add_argument("--schedules", default=None, help="variants of several steps instead of VARIANTS, e.g. "
                     "'4:4;8:8,4:4' (edges:cap of each step, run in turn; steps of a variant by ',', variants by ';')")
     ap.add_argument("--max-rings", type=int, default=None, help="gromov.dense.RELAX_MAX_RINGS for the run")
