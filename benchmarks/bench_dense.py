@@ -1,7 +1,7 @@
 """Dense correspondence: ``gromov.match(..., dense=True)`` beside functional maps (pyFM).
 
 Run:  .venv/bin/python benchmarks/bench_dense.py [--data DIR] [--topkids N] [--classes cat,dog,...]
-                                                [--remeshed DIR] [--perturbed DIR] [--local K] [--relax on|off] [--quick] [--json OUT]
+                                                [--remeshed DIR] [--perturbed DIR] [--local K] [--relax on|off] [--inverse R] [--quick] [--json OUT]
 
 The anchor is pyFM (``pip install pyfmaps``, import ``pyFM``) as its quick-start runs it: both
 meshes area-normalised and centred, 200 Laplace-Beltrami eigenpairs, WKS descriptors (every
@@ -393,6 +393,8 @@ def main(argv=None):
                          "trimmed)")
     ap.add_argument("--relax", choices=("on", "off"), default=None,
                     help="gromov.dense.DENSE_RELAX for this run (default: the package's)")
+    ap.add_argument("--inverse", type=int, default=None,
+                    help="gromov.dense.DENSE_INVERSE for this run (default: the package's)")
     ap.add_argument("--quick", action="store_true", help=f"3 kids, classes {','.join(QUICK_CLASSES)}")
     ap.add_argument("--json", default=str(HERE / "results" / "dense.json"))
     args = ap.parse_args(argv)
@@ -403,6 +405,8 @@ def main(argv=None):
         gromov.dense.DENSE_LOCAL = args.local
     if args.relax is not None:
         gromov.dense.DENSE_RELAX = args.relax == "on"
+    if args.inverse is not None:
+        gromov.dense.DENSE_INVERSE = args.inverse
     classes = list(QUICK_CLASSES) if args.quick else [c for c in args.classes.split(",") if c]
     unknown = sorted(set(classes) - set(TOSCA_PAIRS))
     if unknown:
@@ -412,7 +416,8 @@ def main(argv=None):
                                                                 "n_samples": 100,
                                                                 "candidates": gromov.dense.DENSE_CANDIDATES,
                                                                 "local": gromov.dense.DENSE_LOCAL,
-                                                                "relax": gromov.dense.DENSE_RELAX}},
+                                                                "relax": gromov.dense.DENSE_RELAX,
+                                                                "inverse": gromov.dense.DENSE_INVERSE}},
            "pyfm": {"version": version("pyfmaps"), "k_process": 200, **PYFM}, "gross_per_diameter": GROSS}
     t0 = time.perf_counter()
     if n_kids > 0:
