@@ -951,6 +951,15 @@ def isometric_stress(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES,
     :math:`E_v(T(v)) = \sum_{u \in N(v)} \rho(s\,\lVert x_v - x_u \rVert
     - \lVert y_{T(v)} - y_{T(u)} \rVert)`, with the same neighbourhoods, scale and cap.
 
+    Parameters
+    ----------
+    sx, sy : ShapeMetric or Mesh
+        Their input meshes are used.
+    T : ndarray (n_X,) of int
+        Vertex of Y's input mesh for each vertex of X's input mesh.
+    edges, cap : float
+        As in :func:`relax_isometric`.
+
     Returns
     -------
     ndarray (n_X,) of float64
