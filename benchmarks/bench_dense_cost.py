@@ -44,14 +44,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from _common import add_data_argument, write_results  # noqa: E402
 
-#: row -> (``match(..., dense=)``, input eigenpairs kept from the run before, local isometry step,
-#: rounds of each direction offered the other's inverse and their sweeps: None, the default)
-MODES = {"sparse": (False, False, True, None, None), "placed": ("placed", False, True, None, None),
-         "zoomout": ("zoomout", False, True, None, None), "dense (default)": (True, False, True, None, None),
-         "input eigenpairs cached": (True, True, True, None, None),
-         "not relaxed, eigenpairs cached": (True, True, False, None, None),
-         "one inverse round, eigenpairs cached": (True, True, True, 1, None),
-         "one inverse round of 3 sweeps, eigenpairs cached": (True, True, True, 1, 3)}
+#: row -> (``match(..., dense=)``, input eigenpairs kept from the run before, the
+#: ``gromov.dense`` settings changed for it)
+MODES = {"sparse": (False, False, {}), "placed": ("placed", False, {}), "zoomout": ("zoomout", False, {}),
+         "dense (default)": (True, False, {}), "input eigenpairs cached": (True, True, {}),
+         "not relaxed, eigenpairs cached": (True, True, {"DENSE_RELAX": False}),
+         "not aligned, eigenpairs cached": (True, True, {"DENSE_ALIGN": 0}),
+         "one inverse round, eigenpairs cached": (True, True, {"DENSE_INVERSE": 1}),
+         "one inverse round of 3 sweeps, eigenpairs cached": (True, True, {"DENSE_INVERSE": 1, "INVERSE_SWEEPS": 3})}
 
 
 def main(argv=None) -> int:
@@ -68,25 +68,23 @@ def main(argv=None) -> int:
     factorisation = _spd_solver(sp.identity(3, format="csr"))[1]
     print(f"  input eigensolve: ARPACK shift-invert, {factorisation} factorisation")
     seconds, medians = {}, {}
-    relax_default, inverse_default = gromov.dense.DENSE_RELAX, gromov.dense.DENSE_INVERSE
-    sweeps_default = gromov.dense.INVERSE_SWEEPS
-    for name, (dense, cached, relax, inverse, sweeps) in MODES.items():
+    for name, (dense, cached, settings) in MODES.items():
         runs = []
+        saved = {k: getattr(gromov.dense, k) for k in settings}
         for _ in range(args.repeat):
             if not cached:
                 for s in (sx, sy):
                     assert s.for_correspondence() is s
                     s._input_basis = s._input_rings = s._relax_rings = None
-            gromov.dense.DENSE_RELAX = relax
-            gromov.dense.DENSE_INVERSE = inverse_default if inverse is None else inverse
-            gromov.dense.INVERSE_SWEEPS = sweeps_default if sweeps is None else sweeps
             try:
+                for k, v in settings.items():
+                    setattr(gromov.dense, k, v)
                 t = time.perf_counter()
                 gromov.match(sx, sy, dense=dense)
                 runs.append(time.perf_counter() - t)
             finally:
-                gromov.dense.DENSE_RELAX, gromov.dense.DENSE_INVERSE = relax_default, inverse_default
-                gromov.dense.INVERSE_SWEEPS = sweeps_default
+                for k, v in saved.items():
+                    setattr(gromov.dense, k, v)
         seconds[name], medians[name] = min(runs), statistics.median(runs)
         print(f"  {name:16s} {seconds[name]:.3f} s (median {medians[name]:.3f} s)")
     added = seconds["dense (default)"] - seconds["sparse"]
@@ -94,6 +92,8 @@ def main(argv=None) -> int:
           f"{seconds['input eigenpairs cached'] - seconds['sparse']:.3f} s with the eigenpairs cached)")
     print(f"  the local isometry step (gromov.dense.DENSE_RELAX) adds "
           f"{seconds['input eigenpairs cached'] - seconds['not relaxed, eigenpairs cached']:.3f} s")
+    print(f"  the local rigid alignment (gromov.dense.DENSE_ALIGN) adds "
+          f"{seconds['input eigenpairs cached'] - seconds['not aligned, eigenpairs cached']:.3f} s")
     print(f"  one round of each direction offered the other's inverse (gromov.dense.DENSE_INVERSE = 1) adds "
           f"{seconds['one inverse round, eigenpairs cached'] - seconds['input eigenpairs cached']:.3f} s, "
           f"of 3 sweeps (INVERSE_SWEEPS = 3) "

@@ -765,8 +765,9 @@ def test_relax_reads_no_vertex_order():
 def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     """wolf0 -> wolf1 of TOSCA (one triangulation, so the truth is each vertex itself): the
     local isometry step after the refinement brings more vertices to their very image and
-    lowers the mean error; the default dense map is the refined map so relaxed (then given
-    DENSE_INVERSE rounds of the other direction's inverse, none by default)."""
+    lowers the mean error; the default dense map is the refined map so relaxed, then given
+    DENSE_INVERSE rounds of the other direction's inverse (none by default) and DENSE_ALIGN
+    rounds of local rigid alignment, which bring still more to their very image."""
     import gromov.dense as dense
     from gromov.dense import _at_vertices, relax_isometric
 
@@ -774,16 +775,20 @@ def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
     ids = np.arange(a.n_vertices)
     default = b.from_input_ids(gromov.match(a, b, dense=True).x_to_y_dense_vertex[a.input_ids])
+    align_rounds = dense.DENSE_ALIGN
     monkeypatch.setattr(dense, "DENSE_RELAX", False)
+    monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
     r = gromov.match(a, b, dense=True)
     refined = b.from_input_ids(r.x_to_y_dense_vertex[a.input_ids])
     relaxed = relax_isometric(a, b, refined)
     back = relax_isometric(b, a, a.from_input_ids(r.y_to_x_dense_vertex[b.input_ids]))
-    rounds = dense.DENSE_INVERSE
-    np.testing.assert_array_equal(default, dense.consistent_maps(a, b, relaxed, back, rounds=rounds)[0])
-    errors = [dense_error(*_at_vertices(b, t), b, ids).mean for t in (refined, relaxed)]
+    consistent = dense.consistent_maps(a, b, relaxed, back, rounds=dense.DENSE_INVERSE)[0]
+    np.testing.assert_array_equal(default, dense.align_locally(a, b, consistent, rounds=align_rounds))
+    errors = [dense_error(*_at_vertices(b, t), b, ids).mean for t in (refined, relaxed, default)]
     assert np.mean(relaxed == ids) > np.mean(refined == ids) + 0.03
     assert errors[1] < 0.8 * errors[0]
+    assert align_rounds > 0 and np.mean(default == ids) > np.mean(relaxed == ids) + 0.01
+    assert errors[2] < errors[1]
 
 
 def test_relax_neighbourhoods_are_kept_per_shape(monkeypatch):
@@ -899,6 +904,7 @@ def test_dense_maps_give_both_relaxed_maps_their_inverse_rounds(monkeypatch):
     x = bumpy_torus()
     fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()   # 4 times the faces
     y = Mesh(fine.vertices, fine.faces)
+    monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
     monkeypatch.setattr(dense, "DENSE_INVERSE", 0)
     r0 = gromov.match(x, y, dense=True)
     monkeypatch.setattr(dense, "DENSE_INVERSE", 2)
@@ -906,4 +912,136 @@ def test_dense_maps_give_both_relaxed_maps_their_inverse_rounds(monkeypatch):
     t, s = dense.consistent_maps(x, y, r0.x_to_y_dense_vertex, r0.y_to_x_dense_vertex, rounds=2)
     np.testing.assert_array_equal(r2.x_to_y_dense_vertex, t)
     np.testing.assert_array_equal(r2.y_to_x_dense_vertex, s)
+    assert not (np.array_equal(t, r0.x_to_y_dense_vertex) and np.array_equal(s, r0.y_to_x_dense_vertex))
+
+
+def test_align_keeps_a_similarity_and_brings_back_shaken_images():
+    """The identity onto a rotated, moved copy twice as large is a fixed point of the local
+    rigid alignment; a map whose every image was moved to a random neighbour comes home."""
+    from gromov.dense import align_locally, ring_neighbourhoods
+
+    x = bumpy_torus()
+    rng = np.random.default_rng(0)
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    y = Mesh(2.0 * x.vertices @ rot.T + 1.0, x.faces)
+    ids = np.arange(x.n_vertices)
+    np.testing.assert_array_equal(align_locally(x, y, ids), ids)
+    ptr, nbr = ring_neighbourhoods(x, 1)
+    shaken = nbr[ptr[:-1] + rng.integers(0, np.diff(ptr))]
+    assert np.mean(shaken == ids) < 0.2
+    np.testing.assert_array_equal(align_locally(x, y, shaken), ids)
+    np.testing.assert_array_equal(align_locally(x, y, shaken, rounds=0), shaken)
+    for bad, match in (({"rounds": -1}, "rounds must be"), ({"rings": 0}, "rings must be"),
+                       ({"cap": 0.0}, "cap must be"), ({"edges": 0}, "edges must be")):
+        with pytest.raises(ValueError, match=match):
+            align_locally(x, y, ids, **bad)
+
+
+def test_align_rounds_are_the_plain_procrustes_rule():
+    """The compiled rounds move every image as the plain rule does: each vertex's neighbours
+    (itself left out) carried onto their images by the orthogonal Procrustes motion (scipy's),
+    refitted once with Huber's weights, and the image moved to the vertex nearest where that
+    motion puts the vertex, among those within the rings of its image; all at once."""
+    from scipy.linalg import orthogonal_procrustes
+
+    from gromov.dense import _align, ring_neighbourhoods
+
+    x = bumpy_torus()
+    y = Mesh(1.3 * x.vertices + 0.02 * np.sin(7 * x.vertices[:, ::-1]), x.faces)   # not a similarity
+    nptr, nids = ring_neighbourhoods(x, 2)
+    yptr, yids = ring_neighbourhoods(y, 2)
+    rng = np.random.default_rng(3)
+    p1, n1 = ring_neighbourhoods(y, 1)
+    T0 = n1[p1[:-1] + rng.integers(0, np.diff(p1))]
+    px = 1.3 * x.vertices
+    cap = 0.5 * y.mean_edge_length
+
+    def fit(P, Q, w):
+        cp, cq = np.average(P, axis=0, weights=w), np.average(Q, axis=0, weights=w)
+        R = orthogonal_procrustes(np.sqrt(w)[:, None] * (P - cp), np.sqrt(w)[:, None] * (Q - cq))[0]
+        return lambda p: (p - cp) @ R + cq
+
+    def plain(T, rounds):
+        for _ in range(rounds):
+            new = T.copy()
+            for v in range(len(T)):
+                nb = nids[nptr[v]:nptr[v + 1]]
+                nb = nb[nb != v]
+                P, Q = px[nb], y.vertices[T[nb]]
+                motion = fit(P, Q, np.ones(len(nb)))
+                r = np.linalg.norm(motion(P) - Q, axis=1)
+                at = fit(P, Q, np.minimum(1.0, cap / np.maximum(r, 1e-300)))(px[v])
+                cand = yids[yptr[T[v]]:yptr[T[v] + 1]]
+                d = ((y.vertices[cand] - at) ** 2).sum(axis=1)
+                new[v] = cand[np.argmin(d)]
+            T = new
+        return T
+
+    for rounds in (1, 2):
+        out = _align(nptr, nids, np.ascontiguousarray(px), np.ascontiguousarray(y.vertices), yptr, yids,
+                     T0.astype(np.int64), cap, rounds)
+        expected = plain(T0.copy(), rounds)
+        assert np.mean(expected != T0) > 0.3   # the rounds move many images
+        np.testing.assert_array_equal(out, expected)
+
+
+def test_align_reads_no_vertex_order():
+    """On a permuted copy of X, the aligned map of the permuted map is the permuted aligned map."""
+    from gromov.dense import align_locally, ring_neighbourhoods
+
+    x = bumpy_torus()
+    xp, perm = permutation_of(x, 6)   # vertex j of xp is vertex perm[j] of x
+    y = Mesh(1.3 * x.vertices + 0.02 * np.sin(7 * x.vertices[:, ::-1]), x.faces)
+    ptr, nbr = ring_neighbourhoods(y, 1)
+    shaken = nbr[ptr[:-1] + np.random.default_rng(7).integers(0, np.diff(ptr))]
+    out = align_locally(x, y, shaken)
+    assert not np.array_equal(out, shaken)
+    np.testing.assert_array_equal(align_locally(xp, y, shaken[perm]), out[perm])
+
+
+def test_align_rounds_a_finer_copy_to_the_nearest_vertex_better_than_the_local_stress():
+    """One bumpy torus simplified to 2,800 and to 700 vertices (two triangulations of nearly one
+    surface), the map fine -> coarse each vertex's nearest coarse vertex, every image then moved
+    to a random neighbour: the local rigid alignment brings more images back to the nearest
+    vertex than the local isometry step does (the local stress is flat below an edge, the
+    neighbourhood's motion is not)."""
+    from scipy.spatial import cKDTree
+
+    from gromov.dense import align_locally, relax_isometric, ring_neighbourhoods
+    from gromov.shapes import torus
+
+    t = torus(80, 40)
+    v = t.vertices.copy()
+    ang = np.arctan2(v[:, 1], v[:, 0])
+    v *= (1 + 0.15 * np.exp(-((ang - 1.0) ** 2) / 0.2) + 0.05 * np.sin(3 * ang + 0.4))[:, None]
+    coarse, fine = (Mesh(m.vertices, m.faces) for m in (gromov.simplify(Mesh(v, t.faces), n).mesh
+                                                        for n in (700, 2800)))
+    near = cKDTree(coarse.vertices).query(fine.vertices)[1]
+    ptr, nbr = ring_neighbourhoods(coarse, 1)
+    shaken = nbr[ptr[near] + np.random.default_rng(0).integers(0, np.diff(ptr)[near])]
+    assert np.mean(shaken == near) < 0.2
+    aligned = np.mean(align_locally(fine, coarse, shaken) == near)
+    relaxed = np.mean(relax_isometric(fine, coarse, shaken) == near)
+    assert aligned > 0.8
+    assert aligned > relaxed + 0.03
+
+
+def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch):
+    """``DENSE_ALIGN = R`` makes the dense maps :func:`align_locally` of the maps without it,
+    each direction on its own; on one surface at two densities it changes them."""
+    import trimesh
+
+    import gromov.dense as dense
+
+    x = bumpy_torus()
+    fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()
+    y = Mesh(fine.vertices, fine.faces)
+    monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
+    r0 = gromov.match(x, y, dense=True)
+    monkeypatch.setattr(dense, "DENSE_ALIGN", 3)
+    r3 = gromov.match(x, y, dense=True)
+    t = dense.align_locally(x, y, r0.x_to_y_dense_vertex, rounds=3)
+    s = dense.align_locally(y, x, r0.y_to_x_dense_vertex, rounds=3)
+    np.testing.assert_array_equal(r3.x_to_y_dense_vertex, t)
+    np.testing.assert_array_equal(r3.y_to_x_dense_vertex, s)
     assert not (np.array_equal(t, r0.x_to_y_dense_vertex) and np.array_equal(s, r0.y_to_x_dense_vertex))

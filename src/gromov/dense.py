@@ -101,6 +101,14 @@ RELAX_SWEEPS = 20
 #: ... and at most this many rings of X (the neighbourhoods' memory and time grow with the square
 #: of the rings: an X more than twice as fine as Y gets a smaller radius).
 RELAX_MAX_RINGS = 8
+#: Last (after the local isometry step and any inverse rounds), each map's image of each vertex
+#: moved to the vertex of Y nearest where the rigid motion that best carries its neighbourhood puts it
+#: (:func:`align_locally`; docs/design/dense.md, "Local rigid alignment"): the rounds at most
+#: (0: none), the rings around the current image searched, and the residual, in mean edges of
+#: the coarser mesh, beyond which a neighbour's weight falls in the refit.
+DENSE_ALIGN = 3
+ALIGN_RINGS = 2
+ALIGN_CAP = 1.0
 #: After the local isometry step, rounds in which each direction's map is offered the inverse
 #: of the other direction's as new starts, kept where they lower the local stress
 #: (:func:`consistent_maps`; docs/design/dense.md, "Each direction from the other"). 0, the
@@ -1094,6 +1102,246 @@ def consistent_maps(sx, sy, T: np.ndarray, S: np.ndarray, *, rounds: int = 1,
     return T, S
 
 
+def align_locally(sx, sy, T: np.ndarray, *, rounds: int = DENSE_ALIGN, edges: float = RELAX_EDGES,
+                  rings: int = ALIGN_RINGS, cap: float = ALIGN_CAP) -> np.ndarray:
+    r"""An input-vertex map X -> Y whose images sit where their neighbourhoods put them.
+
+    Each image of a vertex map is off by its rounding to Y's vertices and by slides a local
+    stress hardly sees, but over a neighbourhood those errors average out. For each input
+    vertex v of X, the motion that best carries its neighbours' points onto their images,
+
+    .. math:: (R_v, c_v) = \arg\min_{R \in O(3),\, c} \sum_{u \in N(v) \setminus \{v\}}
+              w_u \lVert R\, s\, x_u + c - y_{T(u)} \rVert^2, \qquad s = \sqrt{A_Y / A_X},
+
+    (orthogonal Procrustes: Schönemann, Psychometrika 31, 1966; :math:`N(v)` the
+    neighbourhood of :func:`relax_isometric`), fitted once with unit weights and once more with
+    :math:`w_u = \min(1, \kappa / r_u)`, :math:`r_u` the first fit's residual and
+    :math:`\kappa` ``cap`` mean edges of the coarser mesh (Huber's weights: a neighbour across a
+    weld or a glued contact does not pull); v's new image is the vertex of Y nearest
+    :math:`R_v\, s\, x_v + c_v` among those within ``rings`` rings of its image. Every image
+    moves at once (no vertex order is read), for ``rounds`` rounds or until none moves; a
+    vertex none of whose neighbours' images moved is not fitted again. v's own image is left
+    out of its fit, so an isolated wrong image does not hold itself in place. The local
+    rigidity is that of as-rigid-as-possible deformation (Sorkine & Alexa, SGP 2007).
+
+    Parameters
+    ----------
+    sx, sy : ShapeMetric or Mesh
+        Their input meshes are used.
+    T : ndarray (n_X,) of int
+        Vertex of Y's input mesh for each vertex of X's input mesh.
+    rounds : int, default DENSE_ALIGN
+    edges : float, default RELAX_EDGES
+        The neighbourhood's radius, as in :func:`relax_isometric`.
+    rings : int, default ALIGN_RINGS
+    cap : float, default ALIGN_CAP
+
+    Returns
+    -------
+    ndarray (n_X,) of int64
+    """
+    if not (isinstance(rounds, (int, np.integer)) and rounds >= 0):
+        raise ValueError(f"rounds must be a non-negative integer, got {rounds!r}")
+    if not (isinstance(rings, (int, np.integer)) and rings >= 1):
+        raise ValueError(f"rings must be a positive integer, got {rings!r}")
+    if not cap > 0:
+        raise ValueError(f"cap must be positive, got {cap!r}")
+    nptr, nids, _, py, _, T = _relax_setup(sx, sy, T, edges, None)
+    x, y = (getattr(s, "input", s) for s in (sx, sy))
+    scale = np.sqrt(y.area / x.area)
+    h = max(x.mean_edge_length * scale, y.mean_edge_length)
+    # the rings the input refinement keeps on the shape, where they are these
+    kept = hasattr(sy, "_input_rings") and rings == INPUT_RINGS
+    yptr, yids = _input_rings(sy, rings) if kept else ring_neighbourhoods(y, rings)
+    px = np.ascontiguousarray(x.vertices, dtype=np.float64) * scale
+    return _align(nptr, nids, px, py, yptr, yids, T, float(cap * h), int(rounds))
+
+
+@njit(cache=True, nogil=True)
+def _orthogonal_factor(H, R):
+    """``R = V U^T`` for the singular value decomposition ``H = U S V^T`` of a 3 x 3 matrix (the
+    orthogonal matrix nearest ``H^T``): V from the eigenvectors of ``H^T H`` by cyclic Jacobi
+    rotations, ``u_i = H v_i / s_i`` for the two largest singular values and the third their
+    cross product, signed as ``H v_3`` (a 3 x 3 LAPACK call costs more than the fit)."""
+    A = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            A[a, b] = H[0, a] * H[0, b] + H[1, a] * H[1, b] + H[2, a] * H[2, b]
+    V = np.eye(3)
+    scale = A[0, 0] + A[1, 1] + A[2, 2]
+    if not scale > 0:
+        R[:] = np.eye(3)
+        return
+    for _ in range(32):   # cyclic Jacobi (Golub & Van Loan, Matrix Computations, 8.5)
+        off = A[0, 1] ** 2 + A[0, 2] ** 2 + A[1, 2] ** 2
+        if off <= 1e-32 * scale * scale:
+            break
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            apq = A[p, q]
+            if apq == 0.0:
+                continue
+            theta = (A[q, q] - A[p, p]) / (2.0 * apq)
+            t = (1.0 if theta >= 0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+            c = 1.0 / np.sqrt(t * t + 1.0)
+            sn = t * c
+            for k in range(3):   # A <- A J, then J^T A
+                akp, akq = A[k, p], A[k, q]
+                A[k, p], A[k, q] = c * akp - sn * akq, sn * akp + c * akq
+            for k in range(3):
+                apk, aqk = A[p, k], A[q, k]
+                A[p, k], A[q, k] = c * apk - sn * aqk, sn * apk + c * aqk
+            for k in range(3):
+                vkp, vkq = V[k, p], V[k, q]
+                V[k, p], V[k, q] = c * vkp - sn * vkq, sn * vkp + c * vkq
+    order = np.argsort(-np.array([A[0, 0], A[1, 1], A[2, 2]]))
+    U = np.empty((3, 3))
+    Vs = np.empty((3, 3))
+    for i in range(3):
+        for k in range(3):
+            Vs[k, i] = V[k, order[i]]
+    for i in range(2):
+        n = 0.0
+        for k in range(3):
+            U[k, i] = H[k, 0] * Vs[0, i] + H[k, 1] * Vs[1, i] + H[k, 2] * Vs[2, i]
+            n += U[k, i] ** 2
+        n = np.sqrt(n)
+        if i == 1:   # orthogonal to the first, against rounding
+            d = U[0, 1] * U[0, 0] + U[1, 1] * U[1, 0] + U[2, 1] * U[2, 0]
+            for k in range(3):
+                U[k, 1] -= d * U[k, 0]
+            n = np.sqrt(U[0, 1] ** 2 + U[1, 1] ** 2 + U[2, 1] ** 2)
+        if not n > 1e-12 * np.sqrt(scale):   # rank below 2: any unit vector orthogonal to the first
+            a = 0 if abs(U[0, 0]) < 0.9 else 1
+            e = np.zeros(3)
+            e[a] = 1.0
+            d = e[0] * U[0, 0] + e[1] * U[1, 0] + e[2] * U[2, 0]
+            for k in range(3):
+                U[k, i] = e[k] - d * U[k, 0]
+            n = np.sqrt(U[0, i] ** 2 + U[1, i] ** 2 + U[2, i] ** 2)
+        for k in range(3):
+            U[k, i] /= n
+    U[0, 2] = U[1, 0] * U[2, 1] - U[2, 0] * U[1, 1]
+    U[1, 2] = U[2, 0] * U[0, 1] - U[0, 0] * U[2, 1]
+    U[2, 2] = U[0, 0] * U[1, 1] - U[1, 0] * U[0, 1]
+    h3 = 0.0
+    for k in range(3):
+        h3 += U[k, 2] * (H[k, 0] * Vs[0, 2] + H[k, 1] * Vs[1, 2] + H[k, 2] * Vs[2, 2])
+    if h3 < 0:
+        for k in range(3):
+            U[k, 2] = -U[k, 2]
+    for a in range(3):
+        for b in range(3):
+            R[a, b] = Vs[a, 0] * U[b, 0] + Vs[a, 1] * U[b, 1] + Vs[a, 2] * U[b, 2]
+
+
+@njit(cache=True, nogil=True)
+def _procrustes(P, Q, W, k, v, out, H, R):
+    """The weighted orthogonal Procrustes motion of ``P[:k]`` onto ``Q[:k]``: ``R`` gets its
+    rotation, ``out`` the image of ``v``; returns the two centroids (``H``: workspace)."""
+    sw = 0.0
+    p0 = p1 = p2 = q0 = q1 = q2 = 0.0
+    for i in range(k):
+        w = W[i]
+        sw += w
+        p0 += w * P[i, 0]
+        p1 += w * P[i, 1]
+        p2 += w * P[i, 2]
+        q0 += w * Q[i, 0]
+        q1 += w * Q[i, 1]
+        q2 += w * Q[i, 2]
+    p0, p1, p2, q0, q1, q2 = p0 / sw, p1 / sw, p2 / sw, q0 / sw, q1 / sw, q2 / sw
+    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
+    for i in range(k):
+        w = W[i]
+        a0, a1, a2 = P[i, 0] - p0, P[i, 1] - p1, P[i, 2] - p2
+        b0, b1, b2 = w * (Q[i, 0] - q0), w * (Q[i, 1] - q1), w * (Q[i, 2] - q2)
+        h00 += a0 * b0
+        h01 += a0 * b1
+        h02 += a0 * b2
+        h10 += a1 * b0
+        h11 += a1 * b1
+        h12 += a1 * b2
+        h20 += a2 * b0
+        h21 += a2 * b1
+        h22 += a2 * b2
+    H[0, 0], H[0, 1], H[0, 2] = h00, h01, h02
+    H[1, 0], H[1, 1], H[1, 2] = h10, h11, h12
+    H[2, 0], H[2, 1], H[2, 2] = h20, h21, h22
+    _orthogonal_factor(H, R)
+    d0, d1, d2 = v[0] - p0, v[1] - p1, v[2] - p2
+    out[0] = R[0, 0] * d0 + R[0, 1] * d1 + R[0, 2] * d2 + q0
+    out[1] = R[1, 0] * d0 + R[1, 1] * d1 + R[1, 2] * d2 + q1
+    out[2] = R[2, 0] * d0 + R[2, 1] * d1 + R[2, 2] * d2 + q2
+    return p0, p1, p2, q0, q1, q2
+
+
+@njit(cache=True, nogil=True)
+def _align(nptr, nids, px, py, yptr, yids, T, cap, rounds):
+    """The rounds of :func:`align_locally` (``px``: X's points already scaled)."""
+    n = T.shape[0]
+    T = T.copy()
+    new = T.copy()
+    moved_last = np.ones(n, np.bool_)
+    moved_now = np.zeros(n, np.bool_)
+    m = 1
+    for v in range(n):
+        m = max(m, nptr[v + 1] - nptr[v])
+    P, Q, W = np.empty((m, 3)), np.empty((m, 3)), np.empty(m)
+    at, H, R = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+    for _ in range(rounds):
+        moved = 0
+        for v in range(n):
+            t = T[v]
+            new[v] = t
+            moved_now[v] = False
+            k = 0
+            due = False
+            for j in range(nptr[v], nptr[v + 1]):
+                u = nids[j]
+                due = due or moved_last[u]
+                if u == v:
+                    continue
+                for a in range(3):
+                    P[k, a] = px[u, a]
+                    Q[k, a] = py[T[u], a]
+                W[k] = 1.0
+                k += 1
+            if not due or k < 4:
+                continue
+            p0, p1, p2, q0, q1, q2 = _procrustes(P, Q, W, k, px[v], at, H, R)
+            c2 = cap * cap
+            refit = False
+            for i in range(k):   # Huber's weights from the first fit's residuals
+                a0, a1, a2 = P[i, 0] - p0, P[i, 1] - p1, P[i, 2] - p2
+                e0 = R[0, 0] * a0 + R[0, 1] * a1 + R[0, 2] * a2 + q0 - Q[i, 0]
+                e1 = R[1, 0] * a0 + R[1, 1] * a1 + R[1, 2] * a2 + q1 - Q[i, 1]
+                e2 = R[2, 0] * a0 + R[2, 1] * a1 + R[2, 2] * a2 + q2 - Q[i, 2]
+                r2 = e0 * e0 + e1 * e1 + e2 * e2
+                if r2 > c2:
+                    W[i] = cap / np.sqrt(r2)
+                    refit = True
+            if refit:   # with every weight 1 the refit is the fit
+                _procrustes(P, Q, W, k, px[v], at, H, R)
+            best = np.inf
+            arg = t
+            for jj in range(yptr[t], yptr[t + 1]):
+                w = yids[jj]
+                d = (py[w, 0] - at[0]) ** 2 + (py[w, 1] - at[1]) ** 2 + (py[w, 2] - at[2]) ** 2
+                if d < best or (d == best and w == t):   # a tie keeps the current image
+                    best = d
+                    arg = w
+            if arg != t:
+                new[v] = arg
+                moved_now[v] = True
+                moved += 1
+        for v in range(n):
+            T[v] = new[v]
+            moved_last[v] = moved_now[v]
+        if moved == 0:
+            break
+    return T
+
+
 def _relax_neighbourhoods(s, mesh, rings: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(indptr, ids, lengths)``: :func:`ring_neighbourhoods` of ``mesh`` and the distance from
     each vertex to each of its neighbours; kept on ``s`` where it is a ShapeMetric (per shape,
@@ -1263,7 +1511,8 @@ def _by_file_id(s, face, bary, vertex) -> DenseMap:
 def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU_SCALE,
                local: int | None = None, keep: float = DENSE_KEEP, rounds: int = DENSE_ROUNDS,
                refine: str | None = DENSE_REFINE, choice: int | None = None,
-               relax: bool | None = None, inverse: int | None = None) -> tuple[DenseMap, DenseMap]:
+               relax: bool | None = None, inverse: int | None = None,
+               align: int | None = None) -> tuple[DenseMap, DenseMap]:
     """Dense maps X -> Y and Y -> X from paired landmarks.
 
     Parameters
@@ -1295,6 +1544,9 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     inverse : int, optional
         Default: :data:`DENSE_INVERSE`, read at each call. With ``relax``, the rounds of
         :func:`consistent_maps` (each direction offered the other's inverse); 0: none.
+    align : int, optional
+        Default: :data:`DENSE_ALIGN`, read at each call. With ``refine="input"``, the rounds of
+        :func:`align_locally` each map gets last; 0: none.
 
     Returns
     -------
@@ -1331,6 +1583,7 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     second = bool(choice) and not local and refine_input
     relax = bool(DENSE_RELAX if relax is None else relax) and refine_input
     inverse = int(DENSE_INVERSE if inverse is None else inverse) if relax else 0
+    align = int(DENSE_ALIGN if align is None else align) if refine_input else 0
 
     def refined(a, b, t, da, db):
         face, bary, vertex = _input_images(a, b, t)
@@ -1368,6 +1621,12 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         vx, vy = first[2], second_way[2]
         if inverse:
             vx, vy = consistent_maps(sx, sy, vx, vy, rounds=inverse, sweeps=INVERSE_SWEEPS, pool=pool)
+        if align:
+            if pool is None:
+                vx, vy = align_locally(sx, sy, vx, rounds=align), align_locally(sy, sx, vy, rounds=align)
+            else:
+                there = pool.submit(align_locally, sy, sx, vy, rounds=align)
+                vx, vy = align_locally(sx, sy, vx, rounds=align), there.result()
         return (finished(sx, sy, *first[:2], vx, vx is not first[2]),
                 finished(sy, sx, *second_way[:2], vy, vy is not second_way[2]))
 

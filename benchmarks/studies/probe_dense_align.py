@@ -1,0 +1,113 @@
+"""The local rigid alignment after the local isometry step: how many rounds, after how many sweeps.
+
+Run:  .venv/bin/python benchmarks/studies/probe_dense_align.py --remeshed R [--data DIR]
+          [--sets topkids,remeshed,perturbed] [--json benchmarks/studies/probe_dense_align.json]
+
+R is the folder ``benchmarks/remesh.py --out R`` fills. On the pairs of ``bench_dense.py`` (its
+functions: TOPKIDS kidXX -> kid00; TOSCA poses remeshed on their own and pose 0 at two densities;
+pose 0 against itself with 20 holes and with 3 welds, both ways) each pair is matched once with
+``gromov.match(X, Y, dense=True)`` with ``gromov.dense.DENSE_RELAX`` off and
+``gromov.dense.DENSE_ALIGN = 0`` (the refined map), and that input-vertex map is scored after each
+variant: ``relax N`` is :func:`gromov.dense.relax_isometric` with at most N sweeps, ``align R``
+:func:`gromov.dense.align_locally` with R rounds (``plain fits``: no refit with Huber's weights,
+``edges E``: a neighbourhood of E mean edges). Error x 100 / sqrt(area) by
+:func:`gromov.evaluate.dense_error` (the better of direct and mirrored) on the same ``--points``
+random vertices of X (seeded) for every variant, the mean per map; per set the mean of the maps'
+means, and how many maps each variant makes better or worse (by 0.001) than ``relax 20`` (the
+local isometry step alone). No pyFM run: the anchor is in ``bench_dense.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_dense as B  # noqa: E402
+from _common import add_data_argument, write_results  # noqa: E402
+
+import gromov  # noqa: E402
+import gromov.dense  # noqa: E402
+from gromov.dense import align_locally, relax_isometric  # noqa: E402
+
+#: name -> (relax sweeps, align rounds, align options)
+VARIANTS = {"relax 20": (20, 0, {}), "align 3": (0, 3, {}),
+            "relax 5, align 2": (5, 2, {}), "relax 5, align 3": (5, 3, {}),
+            "relax 10, align 3": (10, 3, {}), "relax 20, align 1": (20, 1, {}),
+            "relax 20, align 2": (20, 2, {}), "relax 20, align 3": (20, 3, {}),
+            "relax 20, align 3, plain fits": (20, 3, {"cap": np.inf}),
+            "relax 20, align 3, edges 3": (20, 3, {"edges": 3}),
+            "relax 20, align 3, edges 6": (20, 3, {"edges": 6})}
+BASE = "relax 20"
+
+
+def scorer(points: int):
+    """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores the refined map
+    after each variant on ``points`` random vertices of X with a truth, and returns the row."""
+    def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
+        saved = gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN
+        gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = False, 0   # the refined map
+        try:
+            r = gromov.match(x, yref, dense=True)
+        finally:
+            gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = saved
+        T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
+        error = B.random_point_error(x, y, truth, sym, fmm, points)
+        row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
+        relaxed, relax_s = {0: T}, {0: 0.0}
+        for name_v, (sweeps, rounds, options) in VARIANTS.items():
+            if sweeps not in relaxed:
+                t = time.perf_counter()
+                relaxed[sweeps] = relax_isometric(x, y, T, sweeps=sweeps)
+                relax_s[sweeps] = time.perf_counter() - t
+            t = time.perf_counter()
+            out = align_locally(x, y, relaxed[sweeps], rounds=rounds, **options)
+            row["seconds"][name_v] = relax_s[sweeps] + time.perf_counter() - t
+            row["variants"][name_v] = error(out)
+        print(f"  {name:<30} refined {row['refined']:.3f}  "
+              + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
+        return row
+    return evaluate_pair
+
+
+def summary(rows: list) -> dict:
+    base = np.array([r["variants"][BASE] for r in rows])
+    out = {"maps": len(rows), "refined": float(np.mean([r["refined"] for r in rows]))}
+    for key in VARIANTS:
+        vals = np.array([r["variants"][key] for r in rows])
+        out[key] = {"mean": float(vals.mean()), "better": int(np.sum(vals < base - 1e-3)),
+                    "worse": int(np.sum(vals > base + 1e-3)),
+                    "seconds_mean": float(np.mean([r["seconds"][key] for r in rows]))}
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_data_argument(ap)
+    B.add_study_arguments(ap)
+    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_align.json"))
+    args = ap.parse_args(argv)
+    for name in args.sets.split(","):
+        if name not in ("topkids", "remeshed", "perturbed"):
+            ap.error(f"unknown set {name!r}")
+    out = {"variants": {k: [s, r, {o: (float(v) if np.isfinite(v) else None) for o, v in opts.items()}] for k, (s, r, opts) in VARIANTS.items()},
+           "points": args.points, "sets": {}}
+    parts = B.study_sets(args.sets.split(","), Path(args.data), Path(args.remeshed), scorer(args.points))
+    for part, part_rows in parts.items():
+        out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
+        s = out["sets"][part]["summary"]
+        print(f"{part}: refined {s['refined']:.3f}  " + "  ".join(
+            f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict)),
+            flush=True)
+    write_results(args.json, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
