@@ -328,6 +328,21 @@ def run_perturbed(folder: Path, classes: list[str]) -> dict:
     return out
 
 
+def study_parts(ap, args, evaluate, summary, line, allowed=("topkids", "remeshed", "perturbed")) -> dict:
+    """A dense study's sets (``args.sets``, checked against ``allowed``) run by
+    :func:`study_sets` with ``evaluate``: per part ``{"summary": summary(rows), "pairs": rows}``,
+    printed as ``part: line(summary)``."""
+    sets = args.sets.split(",")
+    for name in sets:
+        if name not in allowed:
+            ap.error(f"unknown set {name!r}")
+    out = {}
+    for part, rows in study_sets(sets, Path(args.data), Path(args.remeshed), evaluate).items():
+        out[part] = {"summary": summary(rows), "pairs": rows}
+        print(f"{part}: {line(out[part]['summary'])}", flush=True)
+    return out
+
+
 def study_sets(sets, data: Path, folder: Path | None, evaluate) -> dict[str, list[dict]]:
     """The rows a study's own ``evaluate`` (called as :func:`evaluate_pair` is, returning its row)
     gives on each of ``sets``, split into parts: ``topkids`` (kidXX -> kid00: part ``topkids``),

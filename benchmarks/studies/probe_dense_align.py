@@ -93,18 +93,12 @@ def main(argv=None) -> int:
     B.add_study_arguments(ap)
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_align.json"))
     args = ap.parse_args(argv)
-    for name in args.sets.split(","):
-        if name not in ("topkids", "remeshed", "perturbed"):
-            ap.error(f"unknown set {name!r}")
-    out = {"variants": {k: [s, r, {o: (float(v) if np.isfinite(v) else None) for o, v in opts.items()}] for k, (s, r, opts) in VARIANTS.items()},
-           "points": args.points, "sets": {}}
-    parts = B.study_sets(args.sets.split(","), Path(args.data), Path(args.remeshed), scorer(args.points))
-    for part, part_rows in parts.items():
-        out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
-        s = out["sets"][part]["summary"]
-        print(f"{part}: refined {s['refined']:.3f}  " + "  ".join(
-            f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict)),
-            flush=True)
+    out = {"variants": {k: [s, r, {o: (float(v) if np.isfinite(v) else None) for o, v in opts.items()}]
+                        for k, (s, r, opts) in VARIANTS.items()}, "points": args.points}
+    def line(s):
+        return f"refined {s['refined']:.3f}  " + "  ".join(
+            f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict))
+    out["sets"] = B.study_parts(ap, args, scorer(args.points), summary, line)
     write_results(args.json, out)
     return 0
 

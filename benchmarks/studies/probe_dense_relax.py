@@ -105,19 +105,12 @@ def main(argv=None) -> int:
     variants = parse_schedules(args.schedules) if args.schedules else None
     if args.max_rings is not None:
         gromov.dense.RELAX_MAX_RINGS = args.max_rings
-    data, folder = Path(args.data), Path(args.remeshed)
     out = {"variants": [[list(step) for step in v] for v in variants] if variants else [list(v) for v in VARIANTS],
-           "max_rings": gromov.dense.RELAX_MAX_RINGS, "points": args.points, "sets": {}}
-    for name in args.sets.split(","):
-        if name not in ("topkids", "remeshed", "perturbed"):
-            ap.error(f"unknown set {name!r}")
-    parts = B.study_sets(args.sets.split(","), data, folder, scorer(args.points, variants))
-    for part, part_rows in parts.items():
-        out["sets"][part] = {"summary": summary(part_rows), "pairs": part_rows}
-        s = out["sets"][part]["summary"]
-        print(f"{part}: refined {s['refined']:.3f}  " + "  ".join(
-            f"{k}: {v['mean']:.3f} ({v['worse']} worse)" for k, v in s.items() if isinstance(v, dict)),
-            flush=True)
+           "max_rings": gromov.dense.RELAX_MAX_RINGS, "points": args.points}
+    def line(s):
+        return f"refined {s['refined']:.3f}  " + "  ".join(
+            f"{k}: {v['mean']:.3f} ({v['worse']} worse)" for k, v in s.items() if isinstance(v, dict))
+    out["sets"] = B.study_parts(ap, args, scorer(args.points, variants), summary, line)
     write_results(args.json, out)
     return 0
 
