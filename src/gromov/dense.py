@@ -1289,7 +1289,6 @@ def _align(nptr, nids, px, py, yptr, yids, T, cap, rounds):
     P, Q, W = np.empty((m, 3)), np.empty((m, 3)), np.empty(m)
     at, H, R = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
     for _ in range(rounds):
-        moved = 0
         for v in range(n):
             t = T[v]
             new[v] = t
@@ -1330,14 +1329,9 @@ def _align(nptr, nids, px, py, yptr, yids, T, cap, rounds):
                 if d < best or (d == best and w == t):   # a tie keeps the current image
                     best = d
                     arg = w
-            if arg != t:
-                new[v] = arg
-                moved_now[v] = True
-                moved += 1
-        for v in range(n):
-            T[v] = new[v]
-            moved_last[v] = moved_now[v]
-        if moved == 0:
+            new[v] = arg
+            moved_now[v] = arg != t
+        if _jacobi_step(T, new, moved_last, moved_now) == 0:
             break
     return T
 
@@ -1358,6 +1352,18 @@ def _relax_neighbourhoods(s, mesh, rings: int) -> tuple[np.ndarray, np.ndarray, 
 
 
 @njit(cache=True, nogil=True)
+def _jacobi_step(T, new, moved_last, moved_now):
+    """The images of a sweep made at once: ``T`` takes ``new``, ``moved_last`` ``moved_now``;
+    returns how many moved."""
+    moved = 0
+    for v in range(T.shape[0]):
+        T[v] = new[v]
+        moved_last[v] = moved_now[v]
+        moved += moved_now[v]
+    return moved
+
+
+@njit(cache=True, nogil=True)
 def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
     """Jacobi sweeps of :func:`relax_isometric` (``dist``: the scaled distances on X of the
     pairs ``(v, nids[j])``, ``j`` in ``nptr[v]:nptr[v + 1]``). A vertex none of whose
@@ -1374,7 +1380,6 @@ def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
         m = max(m, nptr[v + 1] - nptr[v])
     bx, by, bz, bd, be = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     for _ in range(sweeps):
-        moved = 0
         for v in range(n):
             due = False
             for j in range(nptr[v], nptr[v + 1]):   # v itself is in its neighbourhood
@@ -1411,14 +1416,9 @@ def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
                 if c < best or (c == best and w == t):   # a tie keeps the current image
                     best = c
                     arg = w
-            if arg != t:
-                new[v] = arg
-                moved_now[v] = True
-                moved += 1
-        for v in range(n):
-            T[v] = new[v]
-            moved_last[v] = moved_now[v]
-        if moved == 0:
+            new[v] = arg
+            moved_now[v] = arg != t
+        if _jacobi_step(T, new, moved_last, moved_now) == 0:
             break
     return T
 
