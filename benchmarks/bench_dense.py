@@ -328,6 +328,12 @@ def run_perturbed(folder: Path, classes: list[str]) -> dict:
     return out
 
 
+def print_variants(name: str, row: dict, width: int = 30) -> None:
+    """A dense study's line for one map: its refined error and each variant's."""
+    print(f"  {name:<{width}} refined {row['refined']:.3f}  "
+          + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
+
+
 def study_parts(ap, args, evaluate, summary, line, allowed=("topkids", "remeshed", "perturbed")) -> dict:
     """A dense study's sets (``args.sets``, checked against ``allowed``) run by
     :func:`study_sets` with ``evaluate``: per part ``{"summary": summary(rows), "pairs": rows}``,

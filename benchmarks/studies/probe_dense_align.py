@@ -70,8 +70,7 @@ def scorer(points: int):
             out = align_locally(x, y, relaxed[sweeps], rounds=rounds, **options)
             row["seconds"][name_v] = relax_s[sweeps] + time.perf_counter() - t
             row["variants"][name_v] = error(out)
-        print(f"  {name:<30} refined {row['refined']:.3f}  "
-              + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
+        B.print_variants(name, row)
         return row
     return evaluate_pair
 

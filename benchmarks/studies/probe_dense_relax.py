@@ -77,8 +77,7 @@ def scorer(points: int, variants=None):
                 relaxed = relax_isometric(x, y, relaxed, edges=edges, cap=cap)
             row["seconds"][key] = time.perf_counter() - t
             row["variants"][key] = error(relaxed)
-        print(f"  {name:<28} refined {row['refined']:.3f}  "
-              + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
+        B.print_variants(name, row, 28)
         return row
     return evaluate_pair
 

@@ -1279,13 +1279,7 @@ def _procrustes(P, Q, W, k, v, out, H, R):
 def _align(nptr, nids, px, py, yptr, yids, T, cap, rounds):
     """The rounds of :func:`align_locally` (``px``: X's points already scaled)."""
     n = T.shape[0]
-    T = T.copy()
-    new = T.copy()
-    moved_last = np.ones(n, np.bool_)
-    moved_now = np.zeros(n, np.bool_)
-    m = 1
-    for v in range(n):
-        m = max(m, nptr[v + 1] - nptr[v])
+    T, new, moved_last, moved_now, m = _jacobi_arrays(T, nptr)
     P, Q, W = np.empty((m, 3)), np.empty((m, 3)), np.empty(m)
     at, H, R = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
     for _ in range(rounds):
@@ -1352,6 +1346,18 @@ def _relax_neighbourhoods(s, mesh, rings: int) -> tuple[np.ndarray, np.ndarray, 
 
 
 @njit(cache=True, nogil=True)
+def _jacobi_arrays(T, nptr):
+    """What the Jacobi sweeps of :func:`_relax` and :func:`_align` start from: a copy of ``T``,
+    the next images, who moved in the last sweep (everyone) and in this one, and the largest
+    neighbourhood of ``nptr`` (at least 1)."""
+    n = T.shape[0]
+    m = 1
+    for v in range(n):
+        m = max(m, nptr[v + 1] - nptr[v])
+    return T.copy(), T.copy(), np.ones(n, np.bool_), np.zeros(n, np.bool_), m
+
+
+@njit(cache=True, nogil=True)
 def _jacobi_step(T, new, moved_last, moved_now):
     """The images of a sweep made at once: ``T`` takes ``new``, ``moved_last`` ``moved_now``;
     returns how many moved."""
@@ -1371,13 +1377,7 @@ def _relax(nptr, nids, dist, py, yptr, yids, T, cap2, sweeps):
     it would find the same one. The neighbours' images are gathered once per vertex, and a
     candidate's sum stops once it exceeds the best (its terms are not negative)."""
     n = T.shape[0]
-    T = T.copy()
-    new = T.copy()
-    moved_last = np.ones(n, np.bool_)
-    moved_now = np.zeros(n, np.bool_)
-    m = 0
-    for v in range(n):
-        m = max(m, nptr[v + 1] - nptr[v])
+    T, new, moved_last, moved_now, m = _jacobi_arrays(T, nptr)
     bx, by, bz, bd, be = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     for _ in range(sweeps):
         for v in range(n):
