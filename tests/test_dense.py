@@ -1045,3 +1045,31 @@ def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch)
     np.testing.assert_array_equal(r3.x_to_y_dense_vertex, t)
     np.testing.assert_array_equal(r3.y_to_x_dense_vertex, s)
     assert not (np.array_equal(t, r0.x_to_y_dense_vertex) and np.array_equal(s, r0.y_to_x_dense_vertex))
+
+
+def test_the_closed_form_orthogonal_factor_is_the_svds():
+    """``_orthogonal_factor(H)`` is ``V U^T`` of the singular value decomposition ``H = U S V^T``:
+    equal to numpy's where the singular values are distinct, and where H has rank 2 or 1 (a
+    flat or a straight neighbourhood, where the factor is not unique) orthogonal and as good:
+    it maximises tr(R H) as numpy's does."""
+    from gromov.dense import _orthogonal_factor
+
+    rng = np.random.default_rng(1)
+    R = np.empty((3, 3))
+    for i in range(400):
+        H = rng.normal(size=(3, 3))
+        if i % 4 == 1:
+            H[:, 2] = 0.0
+        elif i % 4 == 2:
+            H = np.outer(rng.normal(size=3), rng.normal(size=3))
+        elif i % 4 == 3:
+            H = H @ np.diag([1.0, 1.0, 1e-9])
+        _orthogonal_factor(H.copy(), R)
+        U, _, Vt = np.linalg.svd(H)
+        best = Vt.T @ U.T
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-9)
+        assert np.trace(R @ H) >= np.trace(best @ H) - 1e-9 * np.abs(H).max()
+        if i % 4 == 0:
+            np.testing.assert_allclose(R, best, atol=1e-8)
+    _orthogonal_factor(np.zeros((3, 3)), R)
+    np.testing.assert_array_equal(R, np.eye(3))
