@@ -1146,15 +1146,14 @@ def align_locally(sx, sy, T: np.ndarray, *, rounds: int = DENSE_ALIGN, edges: fl
         raise ValueError(f"rings must be a positive integer, got {rings!r}")
     if not cap > 0:
         raise ValueError(f"cap must be positive, got {cap!r}")
-    nptr, nids, _, py, _, T = _relax_setup(sx, sy, T, edges, None)
+    nptr, nids, _, py, cap2, T = _relax_setup(sx, sy, T, edges, cap)   # cap2: (cap edges)^2
     x, y = (getattr(s, "input", s) for s in (sx, sy))
     scale = np.sqrt(y.area / x.area)
-    h = max(x.mean_edge_length * scale, y.mean_edge_length)
     # the rings the input refinement keeps on the shape, where they are these
     kept = hasattr(sy, "_input_rings") and rings == INPUT_RINGS
     yptr, yids = _input_rings(sy, rings) if kept else ring_neighbourhoods(y, rings)
     px = np.ascontiguousarray(x.vertices, dtype=np.float64) * scale
-    return _align(nptr, nids, px, py, yptr, yids, T, float(cap * h), int(rounds))
+    return _align(nptr, nids, px, py, yptr, yids, T, float(np.sqrt(cap2)), int(rounds))
 
 
 @njit(cache=True, nogil=True)
