@@ -765,9 +765,10 @@ def test_relax_reads_no_vertex_order():
 def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     """wolf0 -> wolf1 of TOSCA (one triangulation, so the truth is each vertex itself): the
     local isometry step after the refinement brings more vertices to their very image and
-    lowers the mean error; the default dense map is the refined map so relaxed, then given
-    DENSE_INVERSE rounds of the other direction's inverse (none by default) and DENSE_ALIGN
-    rounds of local rigid alignment, which bring still more to their very image."""
+    lowers the mean error; the default dense map is the refined map so relaxed, given DENSE_ALIGN
+    rounds of local rigid alignment, then DENSE_INVERSE rounds of the other direction's inverse
+    and the alignment again where those changed it, which bring still more to their very
+    image."""
     import gromov.dense as dense
     from gromov.dense import _at_vertices, relax_isometric
 
@@ -782,8 +783,11 @@ def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     refined = b.from_input_ids(r.x_to_y_dense_vertex[a.input_ids])
     relaxed = relax_isometric(a, b, refined)
     back = relax_isometric(b, a, a.from_input_ids(r.y_to_x_dense_vertex[b.input_ids]))
-    consistent = dense.consistent_maps(a, b, relaxed, back, rounds=dense.DENSE_INVERSE)[0]
-    np.testing.assert_array_equal(default, dense.align_locally(a, b, consistent, rounds=align_rounds))
+    aligned = dense.align_locally(a, b, relaxed, rounds=align_rounds)
+    consistent = dense.consistent_maps(a, b, aligned, dense.align_locally(b, a, back, rounds=align_rounds),
+                                       rounds=dense.DENSE_INVERSE, sweeps=dense.INVERSE_SWEEPS)[0]
+    np.testing.assert_array_equal(default, dense.align_locally(a, b, consistent, rounds=align_rounds,
+                                                               since=aligned))
     errors = [dense_error(*_at_vertices(b, t), b, ids).mean for t in (refined, relaxed, default)]
     assert np.mean(relaxed == ids) > np.mean(refined == ids) + 0.03
     assert errors[1] < 0.8 * errors[0]
@@ -979,7 +983,7 @@ def test_align_rounds_are_the_plain_procrustes_rule():
 
     for rounds in (1, 2):
         out = _align(nptr, nids, np.ascontiguousarray(px), np.ascontiguousarray(y.vertices), yptr, yids,
-                     T0.astype(np.int64), cap, rounds)
+                     T0.astype(np.int64), cap, rounds, np.ones(len(T0), dtype=bool))
         expected = plain(T0.copy(), rounds)
         assert np.mean(expected != T0) > 0.3   # the rounds move many images
         np.testing.assert_array_equal(out, expected)
@@ -1027,8 +1031,10 @@ def test_align_rounds_a_finer_copy_to_the_nearest_vertex_better_than_the_local_s
 
 
 def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch):
-    """``DENSE_ALIGN = R`` makes the dense maps :func:`align_locally` of the maps without it,
-    each direction on its own; on one surface at two densities it changes them."""
+    """``DENSE_ALIGN = R`` (no inverse round) makes the dense maps :func:`align_locally` of
+    the maps without it, each direction on its own; on one surface at two densities it changes
+    them. With ``DENSE_INVERSE = 1`` the aligned maps take the inverse round
+    (:func:`consistent_maps`) and are aligned again from there (``since``)."""
     import trimesh
 
     import gromov.dense as dense
@@ -1037,6 +1043,7 @@ def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch)
     fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()
     y = Mesh(fine.vertices, fine.faces)
     monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
+    monkeypatch.setattr(dense, "DENSE_INVERSE", 0)
     r0 = gromov.match(x, y, dense=True)
     monkeypatch.setattr(dense, "DENSE_ALIGN", 3)
     r3 = gromov.match(x, y, dense=True)
@@ -1045,6 +1052,29 @@ def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch)
     np.testing.assert_array_equal(r3.x_to_y_dense_vertex, t)
     np.testing.assert_array_equal(r3.y_to_x_dense_vertex, s)
     assert not (np.array_equal(t, r0.x_to_y_dense_vertex) and np.array_equal(s, r0.y_to_x_dense_vertex))
+
+    monkeypatch.setattr(dense, "DENSE_INVERSE", 1)
+    r = gromov.match(x, y, dense=True)
+    ct, cs = dense.consistent_maps(x, y, t, s, rounds=1, sweeps=dense.INVERSE_SWEEPS)
+    np.testing.assert_array_equal(r.x_to_y_dense_vertex, dense.align_locally(x, y, ct, rounds=3, since=t))
+    np.testing.assert_array_equal(r.y_to_x_dense_vertex, dense.align_locally(y, x, cs, rounds=3, since=s))
+
+
+def test_align_since_fits_only_around_changed_images():
+    """``since`` equal to the map fits no vertex (the map comes back as it is, however far from
+    aligned); ``since`` that differs everywhere is the plain alignment; a wrong shape is refused."""
+    from gromov.dense import align_locally, ring_neighbourhoods
+
+    x = bumpy_torus()
+    ptr, nbr = ring_neighbourhoods(x, 1)
+    shaken = nbr[ptr[:-1] + np.random.default_rng(3).integers(0, np.diff(ptr))]
+    plain = align_locally(x, x, shaken, rounds=2)
+    assert np.mean(plain != shaken) > 0.3
+    np.testing.assert_array_equal(align_locally(x, x, shaken, rounds=2, since=shaken), shaken)
+    other = (shaken + 1) % x.n_vertices
+    np.testing.assert_array_equal(align_locally(x, x, shaken, rounds=2, since=other), plain)
+    with pytest.raises(ValueError, match="since must have"):
+        align_locally(x, x, shaken, since=shaken[:-1])
 
 
 def test_the_closed_form_orthogonal_factor_is_the_svds():
