@@ -97,7 +97,7 @@ DENSE_RELAX = True
 #: neighbourhood: a weld or a glued contact); the sweeps at most.
 RELAX_EDGES = 4
 RELAX_CAP = RELAX_EDGES
-RELAX_SWEEPS = 20
+RELAX_SWEEPS = 10
 #: ... and at most this many rings of X (the neighbourhoods' memory and time grow with the square
 #: of the rings: an X more than twice as fine as Y gets a smaller radius).
 RELAX_MAX_RINGS = 8
@@ -109,11 +109,10 @@ RELAX_MAX_RINGS = 8
 DENSE_ALIGN = 3
 ALIGN_RINGS = 2
 ALIGN_CAP = 1.0
-#: After the local isometry step, rounds in which each direction's map is offered the inverse
-#: of the other direction's as new starts, kept where they lower the local stress
-#: (:func:`consistent_maps`; docs/design/dense.md, "Each direction from the other"). 0, the
-#: default: none. One round lowers the error on every set measured and relaxes two more starts
-#: per direction (1.35 s on two 28k-vertex cats).
+#: After the local isometry step and the local rigid alignment, rounds in which each
+#: direction's map is offered the inverse of the other direction's as new starts, kept where
+#: they lower the local stress (:func:`consistent_maps`); the maps they change are aligned
+#: again (docs/design/dense.md, "Each direction from the other"). 0: none.
 DENSE_INVERSE = 1
 #: :func:`inverse_map`: a vertex without preimages takes the images of those within this many rings.
 INVERSE_RINGS = 2
@@ -1610,7 +1609,7 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
                     starts.append(_input_images(a, b, t2)[2])
             vertex = refine_better(a, b, starts)[0]   # one start: input_zoomout's map
             if relax:
-                vertex = relax_isometric(a, b, vertex)
+                vertex = relax_isometric(a, b, vertex, sweeps=RELAX_SWEEPS)
             face, bary = _at_vertices(b.input, vertex)
         return face, bary, vertex
 
