@@ -334,6 +334,26 @@ def print_variants(name: str, row: dict, width: int = 30) -> None:
           + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
 
 
+def variant_summary(rows: list, variants, base: str) -> dict:
+    """A dense study's summary of its rows (each with ``refined``, ``variants`` and ``seconds``
+    per variant): the maps, the refined mean, and per variant the mean of the maps' means, how
+    many maps it makes better or worse (by 0.001) than ``base``, and its mean seconds."""
+    ref = np.array([r["variants"][base] for r in rows])
+    out = {"maps": len(rows), "refined": float(np.mean([r["refined"] for r in rows]))}
+    for key in variants:
+        vals = np.array([r["variants"][key] for r in rows])
+        out[key] = {"mean": float(vals.mean()), "better": int(np.sum(vals < ref - 1e-3)),
+                    "worse": int(np.sum(vals > ref + 1e-3)),
+                    "seconds_mean": float(np.mean([r["seconds"][key] for r in rows]))}
+    return out
+
+
+def variant_line(s: dict) -> str:
+    """A :func:`variant_summary` as one printed line."""
+    return f"refined {s['refined']:.3f}  " + "  ".join(
+        f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict))
+
+
 def study_parts(ap, args, evaluate, summary, line, allowed=("topkids", "remeshed", "perturbed")) -> dict:
     """A dense study's sets (``args.sets``, checked against ``allowed``) run by
     :func:`study_sets` with ``evaluate``: per part ``{"summary": summary(rows), "pairs": rows}``,

@@ -76,14 +76,7 @@ def scorer(points: int):
 
 
 def summary(rows: list) -> dict:
-    base = np.array([r["variants"][BASE] for r in rows])
-    out = {"maps": len(rows), "refined": float(np.mean([r["refined"] for r in rows]))}
-    for key in VARIANTS:
-        vals = np.array([r["variants"][key] for r in rows])
-        out[key] = {"mean": float(vals.mean()), "better": int(np.sum(vals < base - 1e-3)),
-                    "worse": int(np.sum(vals > base + 1e-3)),
-                    "seconds_mean": float(np.mean([r["seconds"][key] for r in rows]))}
-    return out
+    return B.variant_summary(rows, VARIANTS, BASE)
 
 
 def main(argv=None) -> int:
@@ -94,10 +87,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     out = {"variants": {k: [s, r, {o: (float(v) if np.isfinite(v) else None) for o, v in opts.items()}]
                         for k, (s, r, opts) in VARIANTS.items()}, "points": args.points}
-    def line(s):
-        return f"refined {s['refined']:.3f}  " + "  ".join(
-            f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict))
-    out["sets"] = B.study_parts(ap, args, scorer(args.points), summary, line)
+    out["sets"] = B.study_parts(ap, args, scorer(args.points), summary, B.variant_line)
     write_results(args.json, out)
     return 0
 

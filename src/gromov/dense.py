@@ -101,8 +101,9 @@ RELAX_SWEEPS = 10
 #: ... and at most this many rings of X (the neighbourhoods' memory and time grow with the square
 #: of the rings: an X more than twice as fine as Y gets a smaller radius).
 RELAX_MAX_RINGS = 8
-#: Last (after the local isometry step and any inverse rounds), each map's image of each vertex
-#: moved to the vertex of Y nearest where the rigid motion that best carries its neighbourhood puts it
+#: After the local isometry step (and again after the inverse rounds, around the images they
+#: changed), each map's image of each vertex moved to the vertex of Y nearest where the rigid
+#: motion that best carries its neighbourhood puts it
 #: (:func:`align_locally`; docs/design/dense.md, "Local rigid alignment"): the rounds at most
 #: (0: none), the rings around the current image searched, and the residual, in mean edges of
 #: the coarser mesh, beyond which a neighbour's weight falls in the refit.
@@ -1557,10 +1558,12 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
         map made locally isometric (:func:`relax_isometric`).
     inverse : int, optional
         Default: :data:`DENSE_INVERSE`, read at each call. With ``relax``, the rounds of
-        :func:`consistent_maps` (each direction offered the other's inverse); 0: none.
+        :func:`consistent_maps` (each direction offered the other's inverse), after the
+        alignment; 0: none.
     align : int, optional
         Default: :data:`DENSE_ALIGN`, read at each call. With ``refine="input"``, the rounds of
-        :func:`align_locally` each map gets last; 0: none.
+        :func:`align_locally` each map gets after the local isometry step, and again after the
+        inverse rounds around the images they changed (``since``); 0: none.
 
     Returns
     -------
