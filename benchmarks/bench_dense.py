@@ -334,6 +334,20 @@ def print_variants(name: str, row: dict, width: int = 30) -> None:
           + "  ".join(f"{k}: {v:.3f}" for k, v in row["variants"].items()), flush=True)
 
 
+def refined_maps(x: gromov.Mesh, y: gromov.Mesh, yref) -> tuple[np.ndarray, np.ndarray]:
+    """A dense study's start: the input-vertex maps T: X -> Y (indices of ``y``) and S: Y -> X
+    (indices of ``x``) of ``gromov.match(x, yref, dense=True)`` with
+    ``gromov.dense.DENSE_RELAX`` off and ``DENSE_ALIGN = 0``: the refined maps."""
+    saved = gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN
+    gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = False, 0
+    try:
+        r = gromov.match(x, yref, dense=True)
+    finally:
+        gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = saved
+    return (y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids]),
+            x.from_input_ids(r.y_to_x_dense_vertex[y.input_ids]))
+
+
 def variant_summary(rows: list, variants, base: str) -> dict:
     """A dense study's summary of its rows (each with ``refined``, ``variants`` and ``seconds``
     per variant): the maps, the refined mean, and per variant the mean of the maps' means, how
@@ -352,6 +366,23 @@ def variant_line(s: dict) -> str:
     """A :func:`variant_summary` as one printed line."""
     return f"refined {s['refined']:.3f}  " + "  ".join(
         f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict))
+
+
+def variant_study(argv, doc: str, json_name: str, scorer, variants, base: str, described: dict) -> int:
+    """A dense variant study's ``main``: its arguments (``--data``, :func:`add_study_arguments`,
+    ``--json`` defaulting to ``benchmarks/studies/json_name``), its sets run with
+    ``scorer(points)`` and summarised by :func:`variant_summary` against ``base``, and the JSON:
+    ``described`` (what the variants are), the points and the sets."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    add_data_argument(ap)
+    add_study_arguments(ap)
+    ap.add_argument("--json", default=str(HERE / "studies" / json_name))
+    args = ap.parse_args(argv)
+    out = {**described, "points": args.points}
+    out["sets"] = study_parts(ap, args, scorer(args.points), lambda rows: variant_summary(rows, variants, base),
+                              variant_line)
+    write_results(args.json, out)
+    return 0
 
 
 def study_parts(ap, args, evaluate, summary, line, allowed=("topkids", "remeshed", "perturbed")) -> dict:

@@ -19,7 +19,6 @@ local isometry step alone). No pyFM run: the anchor is in ``bench_dense.py``.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -30,10 +29,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_dense as B  # noqa: E402
-from _common import add_data_argument, write_results  # noqa: E402
 
-import gromov  # noqa: E402
-import gromov.dense  # noqa: E402
 from gromov.dense import align_locally, relax_isometric  # noqa: E402
 
 #: name -> (relax sweeps, align rounds, align options)
@@ -51,13 +47,7 @@ def scorer(points: int):
     """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores the refined map
     after each variant on ``points`` random vertices of X with a truth, and returns the row."""
     def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
-        saved = gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN
-        gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = False, 0   # the refined map
-        try:
-            r = gromov.match(x, yref, dense=True)
-        finally:
-            gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = saved
-        T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
+        T = B.refined_maps(x, y, yref)[0]
         error = B.random_point_error(x, y, truth, sym, fmm, points)
         row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
         relaxed, relax_s = {0: T}, {0: 0.0}
@@ -75,21 +65,11 @@ def scorer(points: int):
     return evaluate_pair
 
 
-def summary(rows: list) -> dict:
-    return B.variant_summary(rows, VARIANTS, BASE)
-
-
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_data_argument(ap)
-    B.add_study_arguments(ap)
-    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_align.json"))
-    args = ap.parse_args(argv)
-    out = {"variants": {k: [s, r, {o: (float(v) if np.isfinite(v) else None) for o, v in opts.items()}]
-                        for k, (s, r, opts) in VARIANTS.items()}, "points": args.points}
-    out["sets"] = B.study_parts(ap, args, scorer(args.points), summary, B.variant_line)
-    write_results(args.json, out)
-    return 0
+    variants = {k: [s, r, {o: (float(v) if np.isfinite(v) else None) for o, v in opts.items()}]
+                for k, (s, r, opts) in VARIANTS.items()}
+    return B.variant_study(argv, __doc__, "probe_dense_align.json", scorer, VARIANTS, BASE,
+                           {"variants": variants})
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ No pyFM run: the anchor is in ``bench_dense.py``.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -31,10 +30,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_dense as B  # noqa: E402
-from _common import add_data_argument, write_results  # noqa: E402
 
-import gromov  # noqa: E402
-import gromov.dense  # noqa: E402
 from gromov.dense import align_locally, consistent_maps, relax_isometric  # noqa: E402
 
 #: name -> (relax sweeps, align rounds before the inverse round, inverse round, align rounds after)
@@ -62,14 +58,7 @@ def scorer(points: int):
     """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores the refined map
     after each variant on ``points`` random vertices of X with a truth, and returns the row."""
     def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
-        saved = gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN
-        gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = False, 0   # the refined maps
-        try:
-            r = gromov.match(x, yref, dense=True)
-        finally:
-            gromov.dense.DENSE_RELAX, gromov.dense.DENSE_ALIGN = saved
-        T = y.from_input_ids(r.x_to_y_dense_vertex[x.input_ids])
-        S = x.from_input_ids(r.y_to_x_dense_vertex[y.input_ids])
+        T, S = B.refined_maps(x, y, yref)
         error = B.random_point_error(x, y, truth, sym, fmm, points)
         row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
         for name_v, spec in VARIANTS.items():
@@ -82,21 +71,10 @@ def scorer(points: int):
     return evaluate_pair
 
 
-def summary(rows: list) -> dict:
-    return B.variant_summary(rows, VARIANTS, BASE)
-
-
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_data_argument(ap)
-    B.add_study_arguments(ap)
-    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "probe_dense_order.json"))
-    args = ap.parse_args(argv)
-    out = {"variants": {k: list(v) for k, v in VARIANTS.items()}, "inverse_sweeps": INVERSE_SWEEPS,
-           "points": args.points}
-    out["sets"] = B.study_parts(ap, args, scorer(args.points), summary, B.variant_line)
-    write_results(args.json, out)
-    return 0
+    return B.variant_study(argv, __doc__, "probe_dense_order.json", scorer, VARIANTS, BASE,
+                           {"variants": {k: list(v) for k, v in VARIANTS.items()},
+                            "inverse_sweeps": INVERSE_SWEEPS})
 
 
 if __name__ == "__main__":
