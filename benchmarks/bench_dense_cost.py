@@ -92,7 +92,7 @@ def main(argv=None) -> int:
     added = seconds["dense (default)"] - seconds["sparse"]
     print(f"  the dense maps add {added:.3f} s ({seconds['placed'] - seconds['sparse']:.3f} s placed only, "
           f"{seconds['input eigenpairs cached'] - seconds['sparse']:.3f} s with the eigenpairs cached)")
-    print(f"  the local isometry step (gromov.dense.DENSE_RELAX) adds "
+    print(f"  the local isometry step (gromov.dense.DENSE_RELAX), with the inverse round that needs it, adds "
           f"{seconds['input eigenpairs cached'] - seconds['not relaxed, eigenpairs cached']:.3f} s")
     print(f"  the local rigid alignment (gromov.dense.DENSE_ALIGN) adds "
           f"{seconds['input eigenpairs cached'] - seconds['not aligned, eigenpairs cached']:.3f} s")
