@@ -628,9 +628,9 @@ def test_prolonged_eigenpairs_bound_the_true_ones_and_converge_to_them():
 
 def test_the_two_input_bases_computed_at_once_are_the_sequential_ones(monkeypatch, tmp_path):
     """``_input_bases``: with both shapes' input eigenpairs missing and two cores free, Y's are
-    computed in a forked process (which reports its pid here) while ``meanwhile`` and X's are
-    computed in this one; both equal, bit for bit, what the sequential computation gives, and
-    ``meanwhile``'s result comes back either way."""
+    computed in a forked process (which reports its pid here), then ``alongside`` there, while
+    ``meanwhile`` and X's are computed in this one; both equal, bit for bit, what the sequential
+    computation gives, and what ``meanwhile`` and ``alongside`` return comes back either way."""
     import os
 
     import gromov.dense as dense
@@ -653,14 +653,17 @@ def test_the_two_input_bases_computed_at_once_are_the_sequential_ones(monkeypatc
     monkeypatch.setattr(dense, "_may_fork", lambda: True)
     sx, sy = pair()
     calls = []
-    assert dense._input_bases(sx, sy, 30, meanwhile=lambda: calls.append(os.getpid()) or "placed") == "placed"
+    got = dense._input_bases(sx, sy, 30, meanwhile=lambda: calls.append(os.getpid()) or "placed",
+                             alongside=lambda: ("there", os.getpid()))
     assert calls == [os.getpid()]   # once, here
     pids = {p.name for p in tmp_path.iterdir()}
     assert f"pid{os.getpid()}" in pids and len(pids) == 2   # one solve here, one in a child
+    assert got[0] == "placed" and got[1][0] == "there" and f"pid{got[1][1]}" in pids - {f"pid{os.getpid()}"}
     monkeypatch.setattr(dense, "_may_fork", lambda: False)
     rx, ry = pair()
-    assert dense._input_bases(rx, ry, 30, meanwhile=lambda: calls.append(0) or "placed") == "placed"
-    assert calls == [os.getpid(), 0]
+    got = dense._input_bases(rx, ry, 30, meanwhile=lambda: calls.append(0) or "placed",
+                             alongside=lambda: ("there", os.getpid()))
+    assert got == ("placed", ("there", os.getpid())) and calls == [os.getpid(), 0]
     for a, b in ((sx, rx), (sy, ry)):
         assert a._input_basis[0].shape == (m.n_vertices, 30)
         np.testing.assert_array_equal(a._input_basis[0], b._input_basis[0])
@@ -811,6 +814,10 @@ def test_relax_neighbourhoods_are_kept_per_shape(monkeypatch):
     monkeypatch.setattr(dense, "ring_neighbourhoods", lambda m, r: built.append(r) or real(m, r))
     np.testing.assert_array_equal(dense.relax_isometric(sx, sy, shaken), first)
     assert built == [1]   # Y's one ring only
+    # the kept lengths: each vertex's Euclidean distance to each neighbour
+    nptr, nids, lengths = sx._relax_rings[1]
+    src = np.repeat(np.arange(x.n_vertices), np.diff(nptr))
+    np.testing.assert_array_equal(lengths, np.linalg.norm(x.vertices[src] - x.vertices[nids], axis=1))
 
 
 def test_inverse_map_of_a_bijection_is_its_inverse():

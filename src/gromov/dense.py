@@ -34,6 +34,7 @@ that chose these settings are in ``docs/design/dense.md``.
 from __future__ import annotations
 
 import logging
+import mmap
 import os
 from dataclasses import dataclass
 
@@ -538,12 +539,41 @@ def _needs_basis(s, k: int) -> bool:
     return cached is None or cached[0].shape[1] < min(k, int(s.working.source_kept.sum()) - 2)
 
 
-#: The shapes whose input eigenpairs a forked process computes (read there, not pickled).
+#: ``(shape, buffer, alongside)``: the shapes whose input eigenpairs a forked process computes
+#: (read there, not pickled), the memory shared with it where it writes them, and what it calls
+#: after them (or None).
 _FORKED: list = []
 
 
+def _shared_buffer(s, k: int) -> mmap.mmap:
+    """Anonymous memory shared with processes forked after it, room for the eigenpairs of
+    :func:`prolonged_basis` on ``s``'s kept input vertices: ``(n, k)`` vectors then ``n``
+    masses, in double precision."""
+    n = int(s.working.source_kept.sum())
+    return mmap.mmap(-1, max(n * (max(min(k, n - 2), 0) + 1), 1) * 8)
+
+
 def _forked_basis(i: int, k: int):
-    return prolonged_basis(_FORKED[i].working, k)
+    """In the forked process: :func:`prolonged_basis` of ``_FORKED[i]``'s shape, written to its
+    shared buffer, then its ``alongside()`` on one BLAS thread; ``(number of vectors, what
+    alongside returned)``."""
+    s, buffer, alongside = _FORKED[i]
+    phi, mass = prolonged_basis(s.working, k)
+    n, kk = phi.shape
+    out = np.frombuffer(buffer, dtype=np.float64)
+    out[:n * kk].reshape(n, kk)[:] = phi
+    out[n * kk:n * kk + n] = mass
+    if alongside is None:
+        return kk, None
+    with one_blas_thread():
+        return kk, alongside()
+
+
+def _from_buffer(s, buffer: mmap.mmap, kk: int) -> tuple[np.ndarray, np.ndarray]:
+    """The eigenpairs :func:`_forked_basis` wrote for ``s``, copied out of the shared buffer."""
+    n = int(s.working.source_kept.sum())
+    out = np.frombuffer(buffer, dtype=np.float64)
+    return out[:n * kk].reshape(n, kk).copy(), out[n * kk:n * kk + n].copy()
 
 
 def _may_fork() -> bool:
@@ -558,36 +588,46 @@ def _may_fork() -> bool:
             and "fork" in mp.get_all_start_methods())
 
 
-def _input_bases(sx, sy, k: int, meanwhile=None):
-    """Both shapes' input eigenpairs (:func:`_input_basis`), once per shape, and the result of
-    ``meanwhile()`` (None if not given), called first. Where both are missing and two cores are
-    there, Y's are computed in a forked process while ``meanwhile()`` and X's are computed here:
-    the shift-invert Lanczos of each holds the GIL (threads would take turns), and the two
-    solves are about half the dense maps' time on two 28k-vertex meshes. The child runs the
-    same code on the same data with one BLAS thread, so the eigenpairs are those of a sequential
-    run."""
+def _input_bases(sx, sy, k: int, meanwhile=None, alongside=None):
+    """Both shapes' input eigenpairs (:func:`_input_basis`), once per shape, and what
+    ``meanwhile()`` and ``alongside()`` return (None for either not given), called first.
+
+    Where both shapes' are missing and two cores are there, Y's are computed in a forked
+    process, which then calls ``alongside()``, while ``meanwhile()`` and X's are computed here,
+    each side on one BLAS thread: the shift-invert Lanczos of each holds the GIL (threads would
+    take turns), and the two solves are about half the dense maps' time on two 28k-vertex
+    meshes; the two calls, one direction's placement each in :func:`dense_maps`, even the two
+    sides' work. The child runs the same code on the same data with one BLAS thread, so the
+    eigenpairs are those of a sequential run. It writes them to memory the two processes
+    share: sent back through a pipe, the 40 MB of a 28k-vertex mesh's took 0.2 s more.
+    """
     import multiprocessing as mp
 
-    result = None
+    here = there_result = None
     if sx is not sy and _needs_basis(sx, k) and _needs_basis(sy, k) and _may_fork():
         from concurrent.futures import ProcessPoolExecutor
 
         global _FORKED
-        _FORKED = [sy]
+        buffer = _shared_buffer(sy, k)
+        _FORKED = [(sy, buffer, alongside)]
         try:
             with ProcessPoolExecutor(1, mp_context=mp.get_context("fork")) as pool:
                 there = pool.submit(_forked_basis, 0, k)
                 if meanwhile is not None:
-                    result = meanwhile()
+                    with one_blas_thread():
+                        here = meanwhile()
                 _input_basis(sx, k)
-                _input_basis(sy, k, there.result())
+                kk, there_result = there.result()
+                _input_basis(sy, k, _from_buffer(sy, buffer, kk))
         finally:
             _FORKED = []
-    elif meanwhile is not None:
-        result = meanwhile()
+            buffer.close()
+    else:
+        here = meanwhile() if meanwhile is not None else None
+        there_result = alongside() if alongside is not None else None
     for s in (sx, sy):
         _input_basis(s, k)
-    return result
+    return here, there_result
 
 
 def ring_neighbourhoods(mesh, rings: int) -> tuple[np.ndarray, np.ndarray]:
@@ -1353,10 +1393,22 @@ def _relax_neighbourhoods(s, mesh, rings: int) -> tuple[np.ndarray, np.ndarray, 
     if cached is not None and cached[0] == rings:
         return cached[1]
     nptr, nids = ring_neighbourhoods(mesh, rings)
-    src = np.repeat(np.arange(mesh.n_vertices), np.diff(nptr))
-    out = (nptr, nids, np.linalg.norm(mesh.vertices[src] - mesh.vertices[nids], axis=1))
+    out = (nptr, nids, _ring_lengths(nptr, nids, np.ascontiguousarray(mesh.vertices, dtype=np.float64)))
     if hasattr(s, "_relax_rings"):
         s._relax_rings = (rings, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _ring_lengths(nptr, nids, v):
+    """Euclidean distance from each vertex to each of its neighbours ``nids[nptr[i]:nptr[i+1]]``
+    (in a loop without the GIL: the two directions compute theirs at once)."""
+    out = np.empty(len(nids))
+    for i in range(len(nptr) - 1):
+        for j in range(nptr[i], nptr[i + 1]):
+            c = nids[j]
+            dx, dy, dz = v[i, 0] - v[c, 0], v[i, 1] - v[c, 1], v[i, 2] - v[c, 2]
+            out[j] = np.sqrt(dx * dx + dy * dy + dz * dz)
     return out
 
 
@@ -1579,21 +1631,22 @@ def dense_maps(sx, sy, landmarks_x, landmarks_y, *, tau_scale: float = DENSE_TAU
     if not (isinstance(choice, (int, np.integer)) and choice >= 0):
         raise ValueError(f"choice must be a non-negative number of landmarks, got {choice!r}")
 
-    def placed():   # the robust maps on the working meshes
-        ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
-        ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
+    def placed(a, b):   # one direction's robust map on the working meshes
         if local:
-            return ax, ay, local_anchored_map(ax, ay, int(local)), local_anchored_map(ay, ax, int(local))
-        return ax, ay, anchored_map(ax, ay, keep=keep, rounds=rounds), anchored_map(ay, ax, keep=keep, rounds=rounds)
+            return local_anchored_map(a, b, int(local))
+        return anchored_map(a, b, keep=keep, rounds=rounds)
 
+    ax = np.hstack([landmark_distances(sx, p, tau_scale) for p in landmarks_x])
+    ay = np.hstack([landmark_distances(sy, p, tau_scale) for p in landmarks_y])
     meshes = sx.has_faces and sy.has_faces
     refine_input = refine == "input" and meshes
     if refine_input:   # per shape, once, before the two directions share them; placed meanwhile
-        ax, ay, t_xy, t_yx = _input_bases(sx, sy, INPUT_K, meanwhile=placed)
+        t_xy, t_yx = _input_bases(sx, sy, INPUT_K, meanwhile=lambda: placed(ax, ay),
+                                  alongside=lambda: placed(ay, ax))
         for s in (sx, sy):
             _input_rings(s, INPUT_RINGS)
     else:
-        ax, ay, t_xy, t_yx = placed()
+        t_xy, t_yx = placed(ax, ay), placed(ay, ax)
     if refine == "zoomout" and meshes:
         t_xy, t_yx = zoomout(sx, sy, t_xy), zoomout(sy, sx, t_yx)
 
