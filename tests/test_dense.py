@@ -798,6 +798,22 @@ def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     assert errors[2] < errors[1]
 
 
+def test_gather_rows_is_numpy_indexing():
+    """The refinement's compiled row gather is ``src[idx, :k]``, contiguous, for single and double
+    precision, a column slice as source and ``k`` beyond its columns."""
+    from gromov.dense import _gather_rows
+
+    rng = np.random.default_rng(1)
+    for dtype in (np.float32, np.float64):
+        a = rng.standard_normal((50, 12)).astype(dtype)
+        idx = rng.integers(0, 50, 70)
+        for src in (a, a[:, :9]):
+            for k in (1, 5, 9, 20):
+                got = _gather_rows(src, idx, k)
+                assert got.flags.c_contiguous and got.dtype == dtype
+                np.testing.assert_array_equal(got, src[idx, :k])
+
+
 def test_relax_neighbourhoods_are_kept_per_shape(monkeypatch):
     """X's neighbourhoods are built once per shape and ring count: a second relaxation of the
     same shape builds none and gives the same map."""
