@@ -590,7 +590,8 @@ def _may_fork() -> bool:
 
 def _input_bases(sx, sy, k: int, meanwhile=None, alongside=None):
     """Both shapes' input eigenpairs (:func:`_input_basis`), once per shape, and what
-    ``meanwhile()`` and ``alongside()`` return (None for either not given), called first.
+    ``meanwhile()`` and ``alongside()`` return (None for either not given); in one process the
+    two are called in that order, before the eigenpairs.
 
     Where both shapes' are missing and two cores are there, Y's are computed in a forked
     process, which then calls ``alongside()``, while ``meanwhile()`` and X's are computed here,
