@@ -467,6 +467,23 @@ def test_eccentricity_study_quantiles_and_first_stage():
     assert st.first_stage(m, {"E": 1}, ks=(10,))["K10"] == 0.0
 
 
+def test_rerank_study_diffusion_separates_clusters():
+    """The re-ranking study's diffusion: symmetric, and on two far clusters every within-cluster
+    value lies below every between-cluster one (no walk of the nearest-neighbour graph crosses);
+    ``plain`` is the symmetrised matrix."""
+    st = _module("recognition_rerank")
+    rng = np.random.default_rng(3)
+    x = np.r_[rng.normal(0.0, 0.1, (8, 2)), rng.normal(5.0, 0.1, (8, 2))]
+    D = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    D[0, 1] *= 1.5   # not symmetric
+    R = st.diffusion_rerank(D, 5, 3)
+    np.testing.assert_allclose(R, R.T)
+    lab = np.r_[np.zeros(8), np.ones(8)]
+    same = (lab[:, None] == lab[None]) & ~np.eye(16, dtype=bool)
+    assert R[same].max() < R[lab[:, None] != lab[None]].min()
+    np.testing.assert_allclose(st.rules()["plain"](D), 0.5 * (D + D.T))
+
+
 def test_one_query_descent_read_off_the_complete_matrix():
     """Each shape the query of a store of the others: with every other shape in its first stage
     the search is brute force; with the first stage alone (factor 0) it matches C shapes a query;
