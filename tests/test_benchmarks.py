@@ -484,6 +484,22 @@ def test_rerank_study_diffusion_separates_clusters():
     np.testing.assert_allclose(st.rules()["plain"](D), 0.5 * (D + D.T))
 
 
+def test_radius_study_caps_the_edges_by_the_area():
+    """The neighbourhood study's cap: RELAX_EDGES without one or where the cap reaches farther,
+    and fewer edges, in proportion to the cap, where it does not."""
+    from gromov.dense import RELAX_EDGES
+    from gromov.shapes import icosphere
+
+    st = _module("probe_dense_radius")
+    m = icosphere(3)
+    assert st.capped_edges(m, m, None) == RELAX_EDGES
+    assert st.capped_edges(m, m, 10.0) == RELAX_EDGES
+    small, smaller = st.capped_edges(m, m, 0.01), st.capped_edges(m, m, 0.005)
+    assert small < RELAX_EDGES and smaller == pytest.approx(small / 2)
+    h = m.mean_edge_length
+    assert small * h == pytest.approx(0.01 * np.sqrt(m.area))
+
+
 def test_one_query_descent_read_off_the_complete_matrix():
     """Each shape the query of a store of the others: with every other shape in its first stage
     the search is brute force; with the first stage alone (factor 0) it matches C shapes a query;

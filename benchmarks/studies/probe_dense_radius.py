@@ -1,0 +1,98 @@
+"""The neighbourhoods of the steps after the refinement: a number of mean edges, or a part of
+the shape too.
+
+Run:  .venv/bin/python benchmarks/studies/probe_dense_radius.py --remeshed R [--data DIR]
+          [--sets topkids,remeshed,perturbed] [--json benchmarks/studies/probe_dense_radius.json]
+
+R is the folder ``benchmarks/remesh.py --out R`` fills. The local isometry step, the local rigid
+alignment and the inverse round fit each vertex's neighbourhood within ``RELAX_EDGES`` mean edges
+of the coarser mesh. On a coarse mesh that is a large part of the shape: 4 edges of a
+1,500-vertex mesh reach about 0.11 √area, of a 28,000-vertex one 0.026 √area (a mean edge is
+about 1.07 √(area / n) on a closed mesh of n vertices), and a rigid fit over a bent joint moves
+right images. Each variant caps the radius at ``rho`` √area of Y (the step's ``edges`` made
+``min(RELAX_EDGES, rho √A_Y / h)``, h the coarser mean edge at Y's scale, as
+:func:`gromov.dense.relax_isometric` measures it), for all three steps, in the default order
+(:func:`gromov.dense.dense_maps`: relax, align, inverse round, align since).
+
+On the pairs of ``bench_dense.py`` (TOPKIDS kidXX -> kid00; TOSCA poses remeshed on their own and
+pose 0 at two densities; pose 0 against itself with 20 holes and with 3 welds, both ways) each
+pair is matched once with ``gromov.dense.DENSE_RELAX`` off and ``DENSE_ALIGN = 0``, which gives
+both refined maps; each variant takes both through the steps and T is scored on the same
+``--points`` random vertices of X (seeded): error x 100 / sqrt(area) by
+:func:`gromov.evaluate.dense_error` (the better of direct and mirrored), the mean per map; per
+set the mean of the maps' means, and how many maps each variant makes better or worse (by 0.001)
+than the default. No pyFM run: the anchor is in ``bench_dense.py``.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_dense as B  # noqa: E402
+
+import gromov.dense as D  # noqa: E402
+
+#: name -> the cap rho (None: RELAX_EDGES mean edges, the default)
+VARIANTS = {"4 edges (default)": None, "at most 0.06 sqrt(area)": 0.06, "at most 0.05 sqrt(area)": 0.05,
+            "at most 0.04 sqrt(area)": 0.04}
+BASE = "4 edges (default)"
+
+
+def capped_edges(x, y, rho: float | None) -> float:
+    """The steps' ``edges`` for the pair (X, Y): ``RELAX_EDGES``, or fewer where that reaches
+    beyond ``rho`` √area of Y."""
+    x, y = (getattr(s, "input", s) for s in (x, y))
+    if rho is None:
+        return float(D.RELAX_EDGES)
+    h = max(x.mean_edge_length * np.sqrt(y.area / x.area), y.mean_edge_length)
+    return float(min(D.RELAX_EDGES, rho * np.sqrt(y.area) / h))
+
+
+def steps(x, y, T, S, rho):
+    """T after the default steps with each direction's neighbourhoods capped at ``rho``."""
+    ex, ey = capped_edges(x, y, rho), capped_edges(y, x, rho)
+    t = D.align_locally(x, y, D.relax_isometric(x, y, T, sweeps=D.RELAX_SWEEPS, edges=ex), edges=ex)
+    s = D.align_locally(y, x, D.relax_isometric(y, x, S, sweeps=D.RELAX_SWEEPS, edges=ey), edges=ey)
+    relax, stress = D.relax_isometric, D.isometric_stress
+    try:   # the inverse round's starts relaxed and compared with the same neighbourhoods
+        D.relax_isometric = functools.partial(relax, edges=ex)
+        D.isometric_stress = functools.partial(stress, edges=ex)
+        t2 = D._better_start(x, y, t, s, D.INVERSE_SWEEPS)
+    finally:
+        D.relax_isometric, D.isometric_stress = relax, stress
+    return D.align_locally(x, y, t2, edges=ex, since=t)
+
+
+def scorer(points: int):
+    """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores the refined map
+    after each variant on ``points`` random vertices of X with a truth, and returns the row."""
+    def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
+        T, S = B.refined_maps(x, y, yref)
+        error = B.random_point_error(x, y, truth, sym, fmm, points)
+        row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {},
+               "edges": {v: capped_edges(x, y, rho) for v, rho in VARIANTS.items()}}
+        for name_v, rho in VARIANTS.items():
+            t = time.perf_counter()
+            out = steps(x, y, T, S, rho)
+            row["seconds"][name_v] = time.perf_counter() - t
+            row["variants"][name_v] = error(out)
+        B.print_variants(name, row)
+        return row
+    return evaluate_pair
+
+
+def main(argv=None) -> int:
+    return B.variant_study(argv, __doc__, "probe_dense_radius.json", scorer, VARIANTS, BASE,
+                           {"variants": dict(VARIANTS), "relax_edges": D.RELAX_EDGES})
+
+
+if __name__ == "__main__":
+    sys.exit(main())
