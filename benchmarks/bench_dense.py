@@ -368,6 +368,28 @@ def variant_line(s: dict) -> str:
         f"{k}: {v['mean']:.3f} (+{v['better']} -{v['worse']})" for k, v in s.items() if isinstance(v, dict))
 
 
+def variant_scorer(variants: dict, run, extra=None):
+    """A variant study's ``scorer`` (:func:`variant_study`): on each pair, both refined maps
+    (:func:`refined_maps`) taken through ``run(x, y, T, S, spec)`` for each variant's ``spec`` in
+    ``variants``, the result scored on ``points`` random vertices of X
+    (:func:`random_point_error`) and timed; ``extra(x, y)``, a dict, joins the row."""
+    def scorer(points: int):
+        def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
+            T, S = refined_maps(x, y, yref)
+            error = random_point_error(x, y, truth, sym, fmm, points)
+            row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {},
+                   **(extra(x, y) if extra is not None else {})}
+            for name_v, spec in variants.items():
+                t = time.perf_counter()
+                out = run(x, y, T, S, spec)
+                row["seconds"][name_v] = time.perf_counter() - t
+                row["variants"][name_v] = error(out)
+            print_variants(name, row)
+            return row
+        return evaluate_pair
+    return scorer
+
+
 def variant_study(argv, doc: str, json_name: str, scorer, variants, base: str, described: dict) -> int:
     """A dense variant study's ``main``: its arguments (``--data``, :func:`add_study_arguments`,
     ``--json`` defaulting to ``benchmarks/studies/json_name``), its sets run with

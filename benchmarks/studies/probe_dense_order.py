@@ -23,7 +23,6 @@ No pyFM run: the anchor is in ``bench_dense.py``.
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,21 +53,8 @@ def steps(x, y, T, S, sweeps, before, inverse, after):
     return t
 
 
-def scorer(points: int):
-    """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores the refined map
-    after each variant on ``points`` random vertices of X with a truth, and returns the row."""
-    def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
-        T, S = B.refined_maps(x, y, yref)
-        error = B.random_point_error(x, y, truth, sym, fmm, points)
-        row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {}}
-        for name_v, spec in VARIANTS.items():
-            t = time.perf_counter()
-            out = steps(x, y, T, S, *spec)
-            row["seconds"][name_v] = time.perf_counter() - t
-            row["variants"][name_v] = error(out)
-        B.print_variants(name, row)
-        return row
-    return evaluate_pair
+#: each pair's maps through each variant's steps, scored (:func:`bench_dense.variant_scorer`)
+scorer = B.variant_scorer(VARIANTS, lambda x, y, T, S, spec: steps(x, y, T, S, *spec))
 
 
 def main(argv=None) -> int:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import functools
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -71,22 +70,10 @@ def steps(x, y, T, S, rho):
     return D.align_locally(x, y, t2, edges=ex, since=t)
 
 
-def scorer(points: int):
-    """A study's ``evaluate_pair`` (:func:`bench_dense.study_sets`) that scores the refined map
-    after each variant on ``points`` random vertices of X with a truth, and returns the row."""
-    def evaluate_pair(name, x, y, yref, truth, sym, fmm, pyfm_ref=None):
-        T, S = B.refined_maps(x, y, yref)
-        error = B.random_point_error(x, y, truth, sym, fmm, points)
-        row = {"pair": name, "refined": error(T), "variants": {}, "seconds": {},
-               "edges": {v: capped_edges(x, y, rho) for v, rho in VARIANTS.items()}}
-        for name_v, rho in VARIANTS.items():
-            t = time.perf_counter()
-            out = steps(x, y, T, S, rho)
-            row["seconds"][name_v] = time.perf_counter() - t
-            row["variants"][name_v] = error(out)
-        B.print_variants(name, row)
-        return row
-    return evaluate_pair
+#: each pair's maps through the steps with each cap, scored (:func:`bench_dense.variant_scorer`),
+#: with the edges each cap gives the pair
+scorer = B.variant_scorer(VARIANTS, steps,
+                          lambda x, y: {"edges": {v: capped_edges(x, y, rho) for v, rho in VARIANTS.items()}})
 
 
 def main(argv=None) -> int:
