@@ -917,6 +917,33 @@ def test_isometric_stress_is_zero_at_an_isometry_and_counts_a_moved_image():
     assert all(i in near for i in np.flatnonzero(e > 0))
 
 
+def test_reach_caps_the_neighbourhood_at_a_part_of_the_shape():
+    """The steps' radius is the smaller of ``edges`` mean edges and ``reach`` sqrt(area of Y): a
+    reach beyond the edges changes nothing; a smaller one is the same neighbourhood as the
+    edges it reaches; each step takes it; a reach must be positive."""
+    from gromov.dense import RELAX_EDGES, _relax_setup, align_locally, isometric_stress, relax_isometric
+
+    x = bumpy_torus()
+    y = Mesh(1.5 * x.vertices + 0.01 * np.sin(5 * x.vertices[:, ::-1]), x.faces)
+    h = max(x.mean_edge_length * np.sqrt(y.area / x.area), y.mean_edge_length)
+    far = RELAX_EDGES * h / np.sqrt(y.area)   # the reach of the edges alone
+    rng = np.random.default_rng(2)
+    T = rng.permutation(x.n_vertices)
+
+    def rings(**kw):
+        nptr = _relax_setup(x, y, T, kw.pop("edges", RELAX_EDGES), RELAX_EDGES, kw["reach"])[0]
+        return np.diff(nptr)
+
+    np.testing.assert_array_equal(rings(reach=2 * far), rings(reach=None))
+    assert rings(reach=far / 4).sum() < rings(reach=None).sum()
+    np.testing.assert_array_equal(rings(reach=far / 4), rings(edges=RELAX_EDGES / 4, reach=None))
+    for step in (isometric_stress, relax_isometric, align_locally):
+        np.testing.assert_array_equal(step(x, y, T, reach=far / 4), step(x, y, T, edges=RELAX_EDGES / 4, reach=None))
+        np.testing.assert_array_equal(step(x, y, T, reach=2 * far), step(x, y, T, reach=None))
+    with pytest.raises(ValueError, match="reach must be positive"):
+        relax_isometric(x, y, T, reach=0.0)
+
+
 def test_consistent_maps_repair_a_slid_map_from_the_other_direction():
     """T: X -> Y with a patch put on the wrong side of the torus (a local minimum of the
     one-edge moves) and S: Y -> X exact: the inverse of S is the identity, of no stress, so T
@@ -1059,7 +1086,9 @@ def test_align_rounds_a_finer_copy_to_the_nearest_vertex_better_than_the_local_s
     surface), the map fine -> coarse each vertex's nearest coarse vertex, every image then moved
     to a random neighbour: the local rigid alignment brings more images back to the nearest
     vertex than the local isometry step does (the local stress is flat below an edge, the
-    neighbourhood's motion is not)."""
+    neighbourhood's motion is not). Both with neighbourhoods of ``RELAX_EDGES`` edges and no
+    ``reach`` (on these coarse meshes the default reach is about 3 edges, and the averaging
+    that this states is over the neighbourhood)."""
     from scipy.spatial import cKDTree
 
     from gromov.dense import align_locally, relax_isometric, ring_neighbourhoods
@@ -1075,8 +1104,8 @@ def test_align_rounds_a_finer_copy_to_the_nearest_vertex_better_than_the_local_s
     ptr, nbr = ring_neighbourhoods(coarse, 1)
     shaken = nbr[ptr[near] + np.random.default_rng(0).integers(0, np.diff(ptr)[near])]
     assert np.mean(shaken == near) < 0.2
-    aligned = np.mean(align_locally(fine, coarse, shaken) == near)
-    relaxed = np.mean(relax_isometric(fine, coarse, shaken) == near)
+    aligned = np.mean(align_locally(fine, coarse, shaken, reach=None) == near)
+    relaxed = np.mean(relax_isometric(fine, coarse, shaken, reach=None) == near)
     assert aligned > 0.8
     assert aligned > relaxed + 0.03
 

@@ -9,10 +9,11 @@ alignment and the inverse round fit each vertex's neighbourhood within ``RELAX_E
 of the coarser mesh. On a coarse mesh that is a large part of the shape: 4 edges of a
 1,500-vertex mesh reach about 0.11 √area, of a 28,000-vertex one 0.026 √area (a mean edge is
 about 1.07 √(area / n) on a closed mesh of n vertices), and a rigid fit over a bent joint moves
-right images. Each variant caps the radius at ``rho`` √area of Y (the step's ``edges`` made
-``min(RELAX_EDGES, rho √A_Y / h)``, h the coarser mean edge at Y's scale, as
+right images. Each variant caps the radius at ``rho`` √area of Y (the steps' ``reach``: the radius
+``min(RELAX_EDGES h, rho √A_Y)``, h the coarser mean edge at Y's scale, as
 :func:`gromov.dense.relax_isometric` measures it), for all three steps, in the default order
-(:func:`gromov.dense.dense_maps`: relax, align, inverse round, align since).
+(:func:`gromov.dense.dense_maps`: relax, align, inverse round, align since). The default cap,
+``RELAX_REACH``, was chosen from this study.
 
 On the pairs of ``bench_dense.py`` (TOPKIDS kidXX -> kid00; TOSCA poses remeshed on their own and
 pose 0 at two densities; pose 0 against itself with 20 holes and with 3 welds, both ways) each
@@ -39,15 +40,15 @@ import bench_dense as B  # noqa: E402
 
 import gromov.dense as D  # noqa: E402
 
-#: name -> the cap rho (None: RELAX_EDGES mean edges, the default)
-VARIANTS = {"4 edges (default)": None, "at most 0.06 sqrt(area)": 0.06, "at most 0.05 sqrt(area)": 0.05,
+#: name -> the cap rho (None: RELAX_EDGES mean edges alone); gromov.dense.RELAX_REACH is 0.06
+VARIANTS = {"4 edges, no cap": None, "at most 0.06 sqrt(area)": 0.06, "at most 0.05 sqrt(area)": 0.05,
             "at most 0.04 sqrt(area)": 0.04}
-BASE = "4 edges (default)"
+BASE = "4 edges, no cap"
 
 
 def capped_edges(x, y, rho: float | None) -> float:
-    """The steps' ``edges`` for the pair (X, Y): ``RELAX_EDGES``, or fewer where that reaches
-    beyond ``rho`` √area of Y."""
+    """The steps' ``edges`` for the pair (X, Y) with the cap: ``RELAX_EDGES``, or fewer where
+    that reaches beyond ``rho`` √area of Y (the radius ``reach=rho`` gives)."""
     x, y = (getattr(s, "input", s) for s in (x, y))
     if rho is None:
         return float(D.RELAX_EDGES)
@@ -56,18 +57,18 @@ def capped_edges(x, y, rho: float | None) -> float:
 
 
 def steps(x, y, T, S, rho):
-    """T after the default steps with each direction's neighbourhoods capped at ``rho``."""
-    ex, ey = capped_edges(x, y, rho), capped_edges(y, x, rho)
-    t = D.align_locally(x, y, D.relax_isometric(x, y, T, sweeps=D.RELAX_SWEEPS, edges=ex), edges=ex)
-    s = D.align_locally(y, x, D.relax_isometric(y, x, S, sweeps=D.RELAX_SWEEPS, edges=ey), edges=ey)
+    """T after the default steps with each direction's neighbourhoods capped at ``rho``
+    (their ``reach``)."""
+    t = D.align_locally(x, y, D.relax_isometric(x, y, T, sweeps=D.RELAX_SWEEPS, reach=rho), reach=rho)
+    s = D.align_locally(y, x, D.relax_isometric(y, x, S, sweeps=D.RELAX_SWEEPS, reach=rho), reach=rho)
     relax, stress = D.relax_isometric, D.isometric_stress
     try:   # the inverse round's starts relaxed and compared with the same neighbourhoods
-        D.relax_isometric = functools.partial(relax, edges=ex)
-        D.isometric_stress = functools.partial(stress, edges=ex)
+        D.relax_isometric = functools.partial(relax, reach=rho)
+        D.isometric_stress = functools.partial(stress, reach=rho)
         t2 = D._better_start(x, y, t, s, D.INVERSE_SWEEPS)
     finally:
         D.relax_isometric, D.isometric_stress = relax, stress
-    return D.align_locally(x, y, t2, edges=ex, since=t)
+    return D.align_locally(x, y, t2, since=t, reach=rho)
 
 
 #: each pair's maps through the steps with each cap, scored (:func:`bench_dense.variant_scorer`),

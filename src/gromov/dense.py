@@ -98,6 +98,11 @@ DENSE_RELAX = True
 #: neighbourhood: a weld or a glued contact); the sweeps at most.
 RELAX_EDGES = 4
 RELAX_CAP = RELAX_EDGES
+#: ... and at most this part of the shape: the radius is min(RELAX_EDGES mean edges,
+#: RELAX_REACH √area of Y). On a coarse mesh 4 edges reach a large part of the shape (0.11 √area
+#: on 1,500 vertices) and a fit over a bent joint moves right images (docs/design/dense.md,
+#: "The steps' neighbourhoods").
+RELAX_REACH = 0.06
 RELAX_SWEEPS = 10
 #: ... and at most this many rings of X (the neighbourhoods' memory and time grow with the square
 #: of the rings: an X more than twice as fine as Y gets a smaller radius).
@@ -946,7 +951,7 @@ def _input_images(sx, sy, T: np.ndarray):
 
 
 def relax_isometric(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES, cap: float | None = RELAX_CAP,
-                    sweeps: int = RELAX_SWEEPS) -> np.ndarray:
+                    sweeps: int = RELAX_SWEEPS, reach: float | None = RELAX_REACH) -> np.ndarray:
     r"""An input-vertex map X -> Y made locally isometric, by moves of one edge.
 
     The stress of GMDS (Bronstein, Bronstein & Kimmel, PNAS 103, 2006) over the pairs of nearby
@@ -959,9 +964,9 @@ def relax_isometric(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES, cap: f
               - \lVert y_w - y_{T(u)} \rVert\big),
               \qquad s = \sqrt{A_Y / A_X},
 
-    :math:`N(v)` the vertices within r rings of v on X, r the rings that reach ``edges`` mean
-    edges of the coarser of the two meshes (X's edges scaled by s; at most
-    :data:`RELAX_MAX_RINGS`); :math:`\rho(e) = e^2`, or
+    :math:`N(v)` the vertices within r rings of v on X, r the rings that reach the smaller of
+    ``edges`` mean edges of the coarser of the two meshes (X's edges scaled by s) and ``reach``
+    :math:`\sqrt{A_Y}` (at most :data:`RELAX_MAX_RINGS`); :math:`\rho(e) = e^2`, or
     :math:`\min(e^2, \kappa^2)` with :math:`\kappa` ``cap`` such edges (Blake & Zisserman,
     *Visual Reconstruction*, 1987). A spectral refinement leaves slides of a few edges where its
     eigenfunctions vary slowly (the ends of limbs, docs/design/dense.md); there the map
@@ -978,18 +983,20 @@ def relax_isometric(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES, cap: f
         Default RELAX_CAP.
     sweeps : int, default RELAX_SWEEPS
         At most; they stop when no image moves.
+    reach : float, optional
+        Default RELAX_REACH; None: ``edges`` alone.
 
     Returns
     -------
     ndarray (n_X,) of int64
     """
-    nptr, nids, dist, py, cap2, T = _relax_setup(sx, sy, T, edges, cap)
+    nptr, nids, dist, py, cap2, T = _relax_setup(sx, sy, T, edges, cap, reach)
     y = getattr(sy, "input", sy)
     yptr, yids = ring_neighbourhoods(y, 1)
     return _relax(nptr, nids, dist, py, yptr, yids, T, cap2, int(sweeps))
 
 
-def _relax_setup(sx, sy, T, edges, cap):
+def _relax_setup(sx, sy, T, edges, cap, reach):
     """The arrays :func:`relax_isometric` and :func:`isometric_stress` share, ``T`` checked."""
     x, y = (getattr(s, "input", s) for s in (sx, sy))
     T = np.asarray(T, dtype=np.int64)
@@ -1000,17 +1007,20 @@ def _relax_setup(sx, sy, T, edges, cap):
         raise ValueError(f"edges must be positive, got {edges!r}")
     if cap is not None and not cap > 0:
         raise ValueError(f"cap must be positive or None, got {cap!r}")
+    if reach is not None and not reach > 0:
+        raise ValueError(f"reach must be positive or None, got {reach!r}")
     scale = np.sqrt(y.area / x.area)
     hx, hy = x.mean_edge_length * scale, y.mean_edge_length
     h = max(hx, hy)
-    rings = min(int(np.ceil(edges * h / hx - 1e-9)), RELAX_MAX_RINGS)
+    radius = edges * h if reach is None else min(edges * h, reach * np.sqrt(y.area))
+    rings = max(1, min(int(np.ceil(radius / hx - 1e-9)), RELAX_MAX_RINGS))
     nptr, nids, lengths = _relax_neighbourhoods(sx, x, rings)
     cap2 = np.inf if cap is None else float(cap * h) ** 2
     return nptr, nids, lengths * scale, np.ascontiguousarray(y.vertices, dtype=np.float64), cap2, T
 
 
 def isometric_stress(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES,
-                     cap: float | None = RELAX_CAP) -> np.ndarray:
+                     cap: float | None = RELAX_CAP, reach: float | None = RELAX_REACH) -> np.ndarray:
     r"""Each input vertex's term of the local stress that :func:`relax_isometric` lowers,
     :math:`E_v(T(v)) = \sum_{u \in N(v)} \rho(s\,\lVert x_v - x_u \rVert
     - \lVert y_{T(v)} - y_{T(u)} \rVert)`, with the same neighbourhoods, scale and cap.
@@ -1021,14 +1031,14 @@ def isometric_stress(sx, sy, T: np.ndarray, *, edges: float = RELAX_EDGES,
         Their input meshes are used.
     T : ndarray (n_X,) of int
         Vertex of Y's input mesh for each vertex of X's input mesh.
-    edges, cap : float
+    edges, cap, reach : float
         As in :func:`relax_isometric`.
 
     Returns
     -------
     ndarray (n_X,) of float64
     """
-    nptr, nids, dist, py, cap2, T = _relax_setup(sx, sy, T, edges, cap)
+    nptr, nids, dist, py, cap2, T = _relax_setup(sx, sy, T, edges, cap, reach)
     return _stress(nptr, nids, dist, py, T, cap2)
 
 
@@ -1160,7 +1170,7 @@ def consistent_maps(sx, sy, T: np.ndarray, S: np.ndarray, *, rounds: int = 1,
 
 def align_locally(sx, sy, T: np.ndarray, *, rounds: int = DENSE_ALIGN, edges: float = RELAX_EDGES,
                   rings: int = ALIGN_RINGS, cap: float = ALIGN_CAP,
-                  since: np.ndarray | None = None) -> np.ndarray:
+                  since: np.ndarray | None = None, reach: float | None = RELAX_REACH) -> np.ndarray:
     r"""An input-vertex map X -> Y whose images sit where their neighbourhoods put them.
 
     Each image of a vertex map is off by its rounding to Y's vertices and by slides a local
@@ -1189,7 +1199,8 @@ def align_locally(sx, sy, T: np.ndarray, *, rounds: int = DENSE_ALIGN, edges: fl
         Vertex of Y's input mesh for each vertex of X's input mesh.
     rounds : int, default DENSE_ALIGN
     edges : float, default RELAX_EDGES
-        The neighbourhood's radius, as in :func:`relax_isometric`.
+        The neighbourhood's radius, as in :func:`relax_isometric`, with ``reach`` (default
+        RELAX_REACH).
     rings : int, default ALIGN_RINGS
     cap : float, default ALIGN_CAP
     since : ndarray (n_X,) of int, optional
@@ -1207,7 +1218,7 @@ def align_locally(sx, sy, T: np.ndarray, *, rounds: int = DENSE_ALIGN, edges: fl
         raise ValueError(f"rings must be a positive integer, got {rings!r}")
     if not cap > 0:
         raise ValueError(f"cap must be positive, got {cap!r}")
-    nptr, nids, _, py, cap2, T = _relax_setup(sx, sy, T, edges, cap)   # cap2: (cap edges)^2
+    nptr, nids, _, py, cap2, T = _relax_setup(sx, sy, T, edges, cap, reach)   # cap2: (cap edges)^2
     x, y = (getattr(s, "input", s) for s in (sx, sy))
     scale = np.sqrt(y.area / x.area)
     # the rings the input refinement keeps on the shape, where they are these
