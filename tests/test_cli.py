@@ -342,8 +342,9 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     base = ["pairwise", *map(str, files), "--metric", "geodesic", "--samples", "20", "--jobs", "1"]
     argv = [*base, "--labels-from-names"]
     # classes of 2: k = 4 is capped at n - 1 = 3, which takes scales from the other class: said
-    with pytest.warns(GromovWarning, match=r"not below the smallest class \(2 shapes\)"):
+    with pytest.warns(GromovWarning, match=r"not below the smallest class \(2 shapes\)") as caught:
         assert main([*argv, "--json", "--out", str(npz), "--mds", str(png)]) == 0
+    assert {str(w.message).split(" with")[0] for w in caught} >= {"local scaling", "diffusion re-ranking"}
     res = json.loads(capsys.readouterr().out)
     names = [str(f) for f in files]
     assert res["files"] == names and res["labels"] == ["sheet", "long", "sheet", "long"]
@@ -353,6 +354,10 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     assert res["errors_at_eer_local"]["false_accept"] == {} and res["errors_at_eer_local"]["false_reject"] == {}
     rel = np.array(res["relative_distance"])
     trim = np.array(res["relative_trimmed_distance"])
+    from gromov.experiments.recognition import diffusion_roc
+
+    assert res["diffusion_rerank_k"] == 3    # k = 8 capped at n - 1
+    assert res["eer_diffusion"] == diffusion_roc(trim, res["labels"], 3)[0].eer
     assert np.array_equal(rel, rel.T) and np.all(np.diag(rel) == 0)
     assert res["rank_residual"] == "log" and np.array_equal(trim, trim.T)   # log distance ratios
     assert main([*argv, "--json", "--rank-residual", "difference", "--local-scaling", "1"]) == 0   # differences
@@ -371,14 +376,17 @@ def test_pairwise_recognises_isometric_shapes(tmp_path, capsys):
     assert str(z["ranked_by"]) == "trimmed" and list(z["nearest"]) == res["nearest"]
     assert float(z["eer"]) == 0.0 and float(z["eer_local"]) == res["eer_local"]
     assert int(z["local_scaling_k"]) == res["local_scaling_k"] == 3
+    assert float(z["eer_diffusion"]) == res["eer_diffusion"] and int(z["diffusion_rerank_k"]) == 3
     assert main([*base, "--local-scaling", "2"]) == 2          # no labels: nothing to scale an EER of
     assert "--local-scaling sets the neighbour" in capsys.readouterr().err
+    assert main([*base, "--diffusion-rerank", "2"]) == 2
+    assert "--diffusion-rerank sets the neighbours" in capsys.readouterr().err
     assert png.stat().st_size > 1000
     # the same run (deterministic) as CSV, and the summary for people
     assert main([*argv, "--out", str(csv_path), "--local-scaling", "1"]) == 0
     out = capsys.readouterr().out
     assert "4 shapes, 6 pairs, geodesic metric" in out and "equal error rate 0.00%" in out
-    assert "locally scaled, k = 1: 0.00%" in out
+    assert "locally scaled, k = 1: 0.00%; diffusion re-ranked, k = 3: " in out
     assert "another class" not in out
     assert "false acceptances (pairs of classes): none; false rejections (within a class): none" in out
     assert res["errors_at_eer"]["false_accept"] == {} and res["errors_at_eer"]["far"] == 0.0

@@ -9,8 +9,8 @@ import pytest
 
 from gromov.experiments import recognition
 from gromov.errors import GromovWarning
-from gromov.experiments.recognition import (equal_error_rate, local_roc, local_scaling, mds_map, plot_mds,
-                                             plot_roc, roc)
+from gromov.experiments.recognition import (diffusion_rerank, diffusion_roc, equal_error_rate, local_roc,
+                                             local_scaling, mds_map, plot_mds, plot_roc, roc)
 
 
 def _matrix(n, entries):
@@ -283,6 +283,80 @@ def test_local_roc_caps_k_and_warns_when_it_reaches_beyond_the_smallest_class():
     for bad in (0, True, 1.5):
         with pytest.raises(ValueError, match="positive integer"):
             local_roc(HAND, HAND_LABELS, bad)
+
+
+def test_diffusion_rerank_by_hand():
+    """D'' = max A - A for A = P A P^T from A = P, P the row-normalised affinities
+    exp(-D'^2) on each shape's k nearest and itself, D' locally scaled: a loop over the entries
+    gives the same matrix; a common unit cancels; no shape order is read."""
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(9, 3))
+    D = _pairwise(x)
+    n, k, kk = 9, 3, 2
+    s = np.sort(D + np.diag(np.full(n, np.inf)), axis=1)[:, kk - 1]   # each shape's scale
+    W = np.array([[np.exp(-D[i, j] ** 2 / (s[i] * s[j])) if i != j else 1.0 for j in range(n)]
+                  for i in range(n)])
+    P = np.zeros((n, n))
+    for i in range(n):
+        keep = np.argsort(-W[i])[:k + 1]
+        P[i, keep] = W[i, keep] / W[i, keep].sum()
+    A = P.copy()
+    for _ in range(2):
+        A = P @ A @ P.T
+    A = 0.5 * (A + A.T)
+    want = A.max() - A
+    np.fill_diagonal(want, 0.0)
+    got = diffusion_rerank(D, k, 3, scale_k=kk)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+    assert np.array_equal(got, got.T) and np.all(got >= 0) and np.all(np.diag(got) == 0)
+    np.testing.assert_allclose(diffusion_rerank(3.5 * D, k, 3, scale_k=kk), got, rtol=1e-12, atol=1e-15)
+    perm = rng.permutation(n)
+    np.testing.assert_allclose(diffusion_rerank(D[np.ix_(perm, perm)], k, 3, scale_k=kk),
+                               got[np.ix_(perm, perm)], rtol=1e-12, atol=1e-15)
+    # one step is the walk's own affinities
+    np.testing.assert_allclose(diffusion_rerank(D, k, 1, scale_k=kk),
+                               (lambda B: (B.max() - B) * (1 - np.eye(n)))(0.5 * (P + P.T)), rtol=1e-12)
+
+
+def test_diffusion_rerank_joins_a_stretched_class_that_one_threshold_splits():
+    """Two classes, each a chain of shapes along a line (each close to the next, its ends far
+    apart: a class whose shapes are not isometric), the chains side by side nearer each
+    other than a chain's two ends are. No threshold of D separates them (the far ends of one
+    chain are farther apart than the two chains); after the diffusion one does: the walk stays
+    in its chain. The EER of :func:`diffusion_roc` is that of the re-ranked matrix."""
+    t = np.linspace(0.0, 6.0, 10)
+    x = np.r_[np.c_[t, np.zeros(10)], np.c_[t + 0.05 * np.arange(10) ** 1.3, np.full(10, 4.0)]]
+    lab = np.repeat(["a", "b"], 10)
+    D = _pairwise(x)
+    assert equal_error_rate(D, lab) > 0.1
+    curve, reranked, k = diffusion_roc(D, lab, 3, 4)
+    assert k == 3 and curve.eer == 0.0 and equal_error_rate(reranked, lab) == 0.0
+    same = (lab[:, None] == lab[None]) & ~np.eye(20, dtype=bool)
+    assert reranked[lab[:, None] != lab[None]].min() > reranked[same].max()
+    np.testing.assert_array_equal(reranked, diffusion_rerank(D, 3, 4))
+    assert equal_error_rate(local_scaling(D, 4), lab) > 0.0   # local scaling alone does not
+    with pytest.warns(GromovWarning, match=r"k = 4 is not below the smallest class \(2 shapes\)"):
+        _, reranked, k = diffusion_roc(HAND, HAND_LABELS, 8)
+    assert k == 4 and np.array_equal(reranked, diffusion_rerank(HAND, 4))   # capped at n - 1
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        diffusion_roc(HAND, HAND_LABELS, 1)
+        diffusion_roc(HAND, HAND_LABELS, 8, warn=False)
+
+
+def test_diffusion_rerank_errors():
+    for name, kw in (("k", {"k": 0}), ("k", {"k": 5}), ("k", {"k": True}), ("steps", {"k": 2, "steps": 0}),
+                     ("steps", {"k": 2, "steps": 1.5}), ("scale_k", {"k": 2, "scale_k": 5})):
+        with pytest.raises(ValueError, match=f"{name} must be"):
+            diffusion_rerank(HAND, **kw)
+    with pytest.raises(ValueError, match="non-negative"):
+        diffusion_rerank(-HAND, 1)
+    with pytest.raises(ValueError, match="symmetric"):
+        diffusion_rerank(np.triu(HAND), 1)
+    with pytest.raises(ValueError, match="positive integer"):
+        diffusion_roc(HAND, HAND_LABELS, 0)
 
 
 def test_mds_recovers_a_planar_configuration():

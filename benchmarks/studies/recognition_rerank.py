@@ -19,7 +19,8 @@ estimate of the same matches:
   transition matrix restricted to each shape's k nearest and itself, :math:`P`, and the
   diffusion :math:`A \\leftarrow P A P^\\top` from :math:`A = P`, t - 1 times (Donoser & Bischof,
   "Diffusion processes for retrieval revisited", CVPR 2013); ranked by :math:`\\max A - A`
-  (symmetrised). k in :data:`DIFFUSION_K`, t in :data:`DIFFUSION_T`.
+  (symmetrised; :func:`gromov.experiments.recognition.diffusion_rerank`). k in
+  :data:`DIFFUSION_K`, t in :data:`DIFFUSION_T`.
 
 Each rule scored per collection (nearest neighbour, first tier, EER) and on the collections
 together, J = mean(1 - NN, 1 - first tier, EER) as in ``recognition_defaults.py`` (the EER with
@@ -48,25 +49,13 @@ RANKINGS = ("combined", "trimmed", "gh")
 
 
 def diffusion_rerank(D: np.ndarray, k: int, t: int, scale_k: int = SCALE_K) -> np.ndarray:
-    """``max A - A`` for the diffusion ``A`` of the module's docstring on the ``k``-nearest
-    neighbour graph of the symmetric distances ``D``, after ``t`` steps; a distance matrix."""
-    from gromov.experiments.recognition import local_scaling
+    """:func:`gromov.experiments.recognition.diffusion_rerank` of the symmetrised ``D`` (the
+    diffusion of the module's docstring on its ``k``-nearest neighbour graph, ``t`` steps)."""
+    from gromov.experiments.recognition import diffusion_rerank as rerank
 
-    D = 0.5 * (np.asarray(D, dtype=np.float64) + np.asarray(D, dtype=np.float64).T)
+    D = np.asarray(D, dtype=np.float64)
     n = len(D)
-    scaled = local_scaling(D, min(scale_k, n - 1))   # d_ij / sqrt(sigma_i sigma_j)
-    W = np.exp(-scaled ** 2)
-    np.fill_diagonal(W, 1.0)
-    nearest = np.argsort(-W, axis=1, kind="stable")[:, :min(k, n - 1) + 1]
-    rows = np.arange(n)[:, None]
-    P = np.zeros_like(W)
-    P[rows, nearest] = W[rows, nearest]
-    P /= P.sum(axis=1, keepdims=True)
-    A = P.copy()
-    for _ in range(int(t) - 1):
-        A = P @ A @ P.T
-    A = 0.5 * (A + A.T)
-    return A.max() - A
+    return rerank(0.5 * (D + D.T), min(k, n - 1), int(t), scale_k=min(scale_k, n - 1))
 
 
 def rules() -> dict:

@@ -7,7 +7,8 @@ without loading numba, scipy or the compiled kernels. Each is documented where i
 ``CUT_PATCHES``), :mod:`gromov.io`
 (``GZIP_RATIO``, ``GZIP_FLOOR``), :mod:`gromov.metrics` (``DIFFUSION_FILL_HOLES``),
 :mod:`gromov.metrics.diffusion` (``HEAT_UNITS``, ``DEFAULT_UNITS``),
-:mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``) and :mod:`gromov.retrieval`
+:mod:`gromov.experiments.recognition` (``LOCAL_SCALING_K``, ``DIFFUSION_RERANK_K``,
+``DIFFUSION_RERANK_STEPS``) and :mod:`gromov.retrieval`
 (``PROFILE_SLACK``, ``TRIANGLE_SLACK``).
 """
 
@@ -24,5 +25,7 @@ DIFFUSION_FILL_HOLES = 0.5
 HEAT_UNITS = ("normalized", "raw", "length", "area")
 DEFAULT_UNITS = "raw"
 LOCAL_SCALING_K = 4
+DIFFUSION_RERANK_K = 8
+DIFFUSION_RERANK_STEPS = 3
 PROFILE_SLACK = 0.3
 TRIANGLE_SLACK = 0.7

@@ -50,7 +50,7 @@ __all__ = ["DenseMap", "dense_maps", "anchored_map", "local_anchored_map", "land
            "laplace_beltrami_basis", "prolonged_basis", "ring_neighbourhoods", "DENSE_TAU_SCALE", "DENSE_KEEP", "DENSE_ROUNDS",
            "DENSE_REFINE", "DENSE_CANDIDATES", "DENSE_LOCAL", "DENSE_CHOICE", "CHOICE_K", "REFINEMENTS",
            "place_small_pieces", "PIECE_PATCH", "zoomout_energy", "refine_better", "placements_agree",
-           "relax_isometric", "DENSE_RELAX", "RELAX_EDGES", "RELAX_CAP", "RELAX_SWEEPS", "RELAX_MAX_RINGS",
+           "relax_isometric", "DENSE_RELAX", "RELAX_EDGES", "RELAX_CAP", "RELAX_REACH", "RELAX_SWEEPS", "RELAX_MAX_RINGS",
            "isometric_stress", "inverse_map", "consistent_maps", "DENSE_INVERSE", "INVERSE_RINGS",
            "INVERSE_SWEEPS"]
 

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path, atomic_savez_compressed
-from .._defaults import DEFAULT_RESOLUTION, PROFILE_SLACK, RANK_RESIDUAL, RANK_RESIDUALS, RANK_TAU_SCALE, TRIANGLE_SLACK
+from .._defaults import (DEFAULT_RESOLUTION, DIFFUSION_RERANK_K, DIFFUSION_RERANK_STEPS, PROFILE_SLACK, RANK_RESIDUAL,
+                         RANK_RESIDUALS, RANK_TAU_SCALE, TRIANGLE_SLACK)
 from ..errors import GromovError
 from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
                     _positive_float, _positive_int, _rank_tau_scale)
@@ -220,7 +221,8 @@ def cmd_pairwise(args) -> int:
 
 def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
     """``(labels, k_local, dask)``: ``pairwise``'s arguments checked before any file is read
-    (each file once, labels, ``--local-scaling``, ``--out``, ``--mds``, ``-k``, Dask)."""
+    (each file once, labels, ``--local-scaling``, ``--diffusion-rerank``, ``--out``, ``--mds``, ``-k``,
+    Dask)."""
     from ..experiments.recognition import LOCAL_SCALING_K
 
     if n < 2:
@@ -234,6 +236,9 @@ def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
     labels = _pairwise_labels(args, n)
     if args.local_scaling is not None and labels is None:
         raise _UserError("--local-scaling sets the neighbour of the locally scaled EER: give "
+                         "--labels or --labels-from-names")
+    if args.diffusion_rerank is not None and labels is None:
+        raise _UserError("--diffusion-rerank sets the neighbours of the re-ranked EER: give "
                          "--labels or --labels-from-names")
     k_local = LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling
     if args.out:
@@ -325,15 +330,16 @@ def _pairwise_result(args, r, files: list, unusable: dict, labels, options: dict
 def _add_recognition(result: dict, args, r, D: np.ndarray, nearest: np.ndarray, k_local: int) -> None:
     """With labels: the nearest-neighbour accuracy and, where every pair was matched and there
     are two shapes of a class and two classes, the equal error rates (ranked by ``D``, by the
-    other matrix, and after local scaling) and the errors at the threshold, into ``result``."""
-    from ..experiments.recognition import errors_at, local_roc, roc
+    other matrix, after local scaling and after the diffusion re-ranking) and the errors at the
+    threshold, into ``result``."""
+    from ..experiments.recognition import diffusion_roc, errors_at, local_roc, roc
 
     lab = np.array(result["labels"])
     n = len(lab)
     result["nn_accuracy"] = float(np.mean(lab[nearest] == lab))
     same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
     result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
-                  local_scaling_k=None, errors_at_eer_local=None)
+                  local_scaling_k=None, errors_at_eer_local=None, eer_diffusion=None, diffusion_rerank_k=None)
     if same.any() and not same.all() and args.k is None and args.candidates is None:   # else all one
         # class, or every shape its own, or not every pair matched: no EER
         curves = {k: roc(r.ranked(k), lab) for k in ("trimmed", "gh", args.rank_by)}
@@ -343,6 +349,9 @@ def _add_recognition(result: dict, args, r, D: np.ndarray, nearest: np.ndarray, 
                       errors_at_eer=errors_at(D, lab, curves[args.rank_by].eer_threshold),
                       eer_local=local.eer, local_scaling_k=k_used,
                       errors_at_eer_local=errors_at(scaled, lab, local.eer_threshold))
+        k_diffusion = DIFFUSION_RERANK_K if args.diffusion_rerank is None else args.diffusion_rerank
+        diffused, _, k_used = diffusion_roc(D, lab, k_diffusion)
+        result.update(eer_diffusion=diffused.eer, diffusion_rerank_k=k_used)
 
 
 def _write_pairwise(args, r, result: dict, D: np.ndarray) -> None:
@@ -364,6 +373,9 @@ def _write_pairwise(args, r, result: dict, D: np.ndarray) -> None:
                                     eer=nan if result.get("eer") is None else result["eer"],
                                     eer_local=nan if result.get("eer_local") is None else result["eer_local"],
                                     local_scaling_k=result.get("local_scaling_k") or 0,
+                                    eer_diffusion=nan if result.get("eer_diffusion") is None
+                                    else result["eer_diffusion"],
+                                    diffusion_rerank_k=result.get("diffusion_rerank_k") or 0,
                                     metric=args.metric, options=json.dumps(result["metric_options"]),
                                     rank_tau_scale=nan if r.rank_tau_scale is None else r.rank_tau_scale,
                                     rank_residual=r.rank_residual,
@@ -419,7 +431,8 @@ def _print_pairwise(args, r, result: dict, nearest: np.ndarray, store) -> None:
                 other = result["eer_gh"] if args.rank_by == "trimmed" else result["eer_trimmed"]
                 others = f"ranked by the other: {other:.2%}"
             print(f"  equal error rate {result['eer']:.2%} ({others}; "
-                  f"locally scaled, k = {result['local_scaling_k']}: {result['eer_local']:.2%}), "
+                  f"locally scaled, k = {result['local_scaling_k']}: {result['eer_local']:.2%}; "
+                  f"diffusion re-ranked, k = {result['diffusion_rerank_k']}: {result['eer_diffusion']:.2%}), "
                   f"nearest-neighbour accuracy {result['nn_accuracy']:.1%}")
             from ..experiments.report import errors_text
 
@@ -562,6 +575,12 @@ def _pairwise_parser(sub) -> None:
                         "correspondence (default, as gromov reproduce), by the GH estimate, or by "
                         "the trimmed distortion and the spectral distance (Shape-DNA) together")
     _add_rank_args(q)
+    q.add_argument("--diffusion-rerank", type=_positive_int, default=None, metavar="K",
+                   help=f"the EER is also reported after a diffusion on the shapes' K-nearest "
+                        f"neighbour graph ({DIFFUSION_RERANK_STEPS} steps; Donoser & Bischof 2013): "
+                        f"shapes that share near neighbours come closer (a set-level rule, beside the "
+                        f"EER; capped at the number of shapes less one; default {DIFFUSION_RERANK_K}; "
+                        f"needs labels)")
     q.add_argument("--out", default=None, metavar="FILE",
                    help=".npz with all matrices, or .csv with the matrix the results rank by "
                         "(named in its first cell)")
@@ -632,6 +651,8 @@ def _pairwise_partial(args) -> int:
                "--rank-residual": (args.rank_residual != RANK_RESIDUAL, "it sets the ranking of full matches"),
                "--local-scaling": (args.local_scaling is not None, ("it scales the equal error rate, which a "
                                                                     "distance that is not symmetric does not have")),
+               "--diffusion-rerank": (args.diffusion_rerank is not None,
+                                      "it re-ranks a symmetric distance, which the partial one is not"),
                "--mds": (args.mds is not None, "the partial distance is not symmetric"),
                "--jobs": (args.jobs is not None, "the pairs run one after the other in this process"),
                "--dask": (args.dask is not None, "the pairs run one after the other in this process"),
