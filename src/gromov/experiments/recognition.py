@@ -440,9 +440,9 @@ def diffusion_roc(distances, labels, k: int = DIFFUSION_RERANK_K, steps: int = D
     steps : int, default DIFFUSION_RERANK_STEPS (3)
     warn : bool, default True
         Warn (:class:`gromov.errors.GromovWarning`) when the ``k`` used is not below the size
-        of the smallest class: each walk then steps into other classes from its first step
-        (on TOSCA, smallest class 3, k = 8 still ranks well; on ten shapes in classes of two
-        it does not).
+        of the smallest class: a shape's walk may then step into other classes from its
+        first step (on TOSCA, smallest class 3, k = 8 still ranks well: EER 1.6%; on ten of
+        its shapes in classes of two, 20%).
 
     Returns
     -------
@@ -461,8 +461,8 @@ def diffusion_roc(distances, labels, k: int = DIFFUSION_RERANK_K, steps: int = D
         from ..errors import GromovWarning
 
         warnings.warn(f"diffusion re-ranking with k = {used} is not below the smallest class "
-                      f"({smallest_class(lab)} shapes): each walk reaches other classes "
-                      f"(--diffusion-rerank)", GromovWarning, stacklevel=2)
+                      f"({smallest_class(lab)} shapes): a shape's walk may reach other classes",
+                      GromovWarning, stacklevel=2)
     reranked = diffusion_rerank(d, used, steps, scale_k=min(LOCAL_SCALING_K, n - 1))
     return roc(reranked, lab), reranked, used
 
