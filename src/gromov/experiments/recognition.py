@@ -449,22 +449,31 @@ def diffusion_roc(distances, labels, k: int = DIFFUSION_RERANK_K, steps: int = D
     (ROC, ndarray, int)
         The curve of ``D''``, ``D''`` itself and the ``k`` used.
     """
+    d, lab, used = _set_level_arguments(distances, labels, k, warn and (
+        "diffusion re-ranking", "a shape's walk may reach other classes"))
+    reranked = diffusion_rerank(d, used, steps, scale_k=min(LOCAL_SCALING_K, len(d) - 1))
+    return roc(reranked, lab), reranked, used
+
+
+def _set_level_arguments(distances, labels, k, warning):
+    """``(D, labels, k used)`` of a set-level ROC, ``k`` capped at ``n - 1``; with ``warning``
+    ``(rule, what goes wrong)``, a :class:`gromov.errors.GromovWarning` where that ``k`` is not
+    below the smallest class."""
     d = _check_distances(distances)
     n = d.shape[0]
     lab = _check_labels(labels, n)
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise ValueError(f"k must be a positive integer, got {k!r}")
     used = min(int(k), n - 1)
-    if warn and used >= smallest_class(lab):
+    if warning and used >= smallest_class(lab):
         import warnings
 
         from ..errors import GromovWarning
 
-        warnings.warn(f"diffusion re-ranking with k = {used} is not below the smallest class "
-                      f"({smallest_class(lab)} shapes): a shape's walk may reach other classes",
-                      GromovWarning, stacklevel=2)
-    reranked = diffusion_rerank(d, used, steps, scale_k=min(LOCAL_SCALING_K, n - 1))
-    return roc(reranked, lab), reranked, used
+        rule, what = warning
+        warnings.warn(f"{rule} with k = {used} is not below the smallest class "
+                      f"({smallest_class(lab)} shapes): {what}", GromovWarning, stacklevel=3)
+    return d, lab, used
 
 
 def smallest_class(labels) -> int:
@@ -492,22 +501,8 @@ def local_roc(distances, labels, k: int = LOCAL_SCALING_K, *, warn: bool = True
     (ROC, ndarray, int)
         The curve of ``D'``, ``D'`` itself and the ``k`` used.
     """
-    d = _check_distances(distances)
-    n = d.shape[0]
-    lab = _check_labels(labels, n)
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise ValueError(f"k must be a positive integer, got {k!r}")
-    used = min(int(k), n - 1)
-    if warn:
-        smallest = smallest_class(lab)
-        if used >= smallest:
-            import warnings
-
-            from ..errors import GromovWarning
-
-            warnings.warn(f"local scaling with k = {used} is not below the smallest class "
-                          f"({smallest} shapes): a shape's scale may come from another class",
-                          GromovWarning, stacklevel=2)
+    d, lab, used = _set_level_arguments(distances, labels, k, warn and (
+        "local scaling", "a shape's scale may come from another class"))
     scaled = local_scaling(d, used)
     return roc(scaled, lab), scaled, used
 
