@@ -27,7 +27,6 @@ than the default. No pyFM run: the anchor is in ``bench_dense.py``.
 
 from __future__ import annotations
 
-import functools
 import sys
 from pathlib import Path
 
@@ -61,13 +60,7 @@ def steps(x, y, T, S, rho):
     (their ``reach``)."""
     t = D.align_locally(x, y, D.relax_isometric(x, y, T, sweeps=D.RELAX_SWEEPS, reach=rho), reach=rho)
     s = D.align_locally(y, x, D.relax_isometric(y, x, S, sweeps=D.RELAX_SWEEPS, reach=rho), reach=rho)
-    relax, stress = D.relax_isometric, D.isometric_stress
-    try:   # the inverse round's starts relaxed and compared with the same neighbourhoods
-        D.relax_isometric = functools.partial(relax, reach=rho)
-        D.isometric_stress = functools.partial(stress, reach=rho)
-        t2 = D._better_start(x, y, t, s, D.INVERSE_SWEEPS)
-    finally:
-        D.relax_isometric, D.isometric_stress = relax, stress
+    t2 = D._better_start(x, y, t, s, D.INVERSE_SWEEPS, reach=rho)   # the inverse round's starts
     return D.align_locally(x, y, t2, since=t, reach=rho)
 
 

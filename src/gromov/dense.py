@@ -1108,15 +1108,16 @@ def inverse_map(sx, sy, S: np.ndarray, T: np.ndarray, *, rings: int = INVERSE_RI
     return out
 
 
-def _better_start(sx, sy, T: np.ndarray, S: np.ndarray, sweeps: int) -> np.ndarray:
+def _better_start(sx, sy, T: np.ndarray, S: np.ndarray, sweeps: int, reach=RELAX_REACH) -> np.ndarray:
     """T, or the lowest in local stress of two starts from S's inverse I, each relaxed: I
-    itself, and T with I taken where I's vertex has the lower stress."""
+    itself, and T with I taken where I's vertex has the lower stress (neighbourhoods of
+    :func:`relax_isometric` with ``reach``)."""
     inv = inverse_map(sx, sy, S, T)
-    here, there = isometric_stress(sx, sy, T), isometric_stress(sx, sy, inv)
+    here, there = isometric_stress(sx, sy, T, reach=reach), isometric_stress(sx, sy, inv, reach=reach)
     best, low = T, here.sum()
     for start in (inv, np.where(there < here, inv, T)):
-        relaxed = relax_isometric(sx, sy, start, sweeps=sweeps)
-        e = isometric_stress(sx, sy, relaxed).sum()
+        relaxed = relax_isometric(sx, sy, start, sweeps=sweeps, reach=reach)
+        e = isometric_stress(sx, sy, relaxed, reach=reach).sum()
         if e < low:
             best, low = relaxed, e
     return best

@@ -234,12 +234,10 @@ def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
         dup = sorted({f for f, r in zip(args.files, real) if real.count(r) > 1})
         raise _UserError(f"a file is given twice: {', '.join(dup)}")
     labels = _pairwise_labels(args, n)
-    if args.local_scaling is not None and labels is None:
-        raise _UserError("--local-scaling sets the neighbour of the locally scaled EER: give "
-                         "--labels or --labels-from-names")
-    if args.diffusion_rerank is not None and labels is None:
-        raise _UserError("--diffusion-rerank sets the neighbours of the re-ranked EER: give "
-                         "--labels or --labels-from-names")
+    for flag, value, sets in (("--local-scaling", args.local_scaling, "the neighbour of the locally scaled EER"),
+                              ("--diffusion-rerank", args.diffusion_rerank, "the neighbours of the re-ranked EER")):
+        if value is not None and labels is None:
+            raise _UserError(f"{flag} sets {sets}: give --labels or --labels-from-names")
     k_local = LOCAL_SCALING_K if args.local_scaling is None else args.local_scaling
     if args.out:
         if not args.out.endswith((".npz", ".csv")):
