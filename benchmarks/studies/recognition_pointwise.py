@@ -1,0 +1,242 @@
+"""Two more per-pair rankings: the heat kernel signature's distortion along the match, and a second metric.
+
+Run:  nice -n 10 .venv/bin/python benchmarks/studies/recognition_pointwise.py [--data DIR] [--per-class 6]
+          [--jobs 2] [--no-geodesic] [--cache DIR] [--json benchmarks/studies/recognition_pointwise.json]
+
+On the subsets of ``recognition_defaults.py`` (``class_subset(labels, 6, seed=0)``: 60 watertight
+shapes, 49 TOSCA shapes), each collection's matrices as ``gromov pairwise FILES --units area
+--samples 50 --rank-by combined`` makes them (:func:`gromov.experiments.gh_matrix`: ``S`` the
+Shape-DNA distance of the working meshes, ``G`` the trimmed distortion, ``GH`` the GH estimate,
+``C`` the combined S^0.35 G^0.65), every pair's correspondence kept, and two candidates that a
+pair's value could also be made of:
+
+- ``H``: the distortion of the heat kernel signature along the match. Each input mesh's
+  signature h(x) = log(A k_t(x, x)) at the times t = tau A, ``TAUS`` (12 from 0.001 to 0.3;
+  Sun, Ovsjanikov & Guibas, "A concise and provably informative multi-scale signature based on
+  heat diffusion", SGP 2009), from 150 eigenpairs of its robust Laplacian (Sharp & Crane 2020;
+  ``bench_recognition.py``'s ``laplacian`` and ``eigenpairs``): scale-invariant, and unchanged
+  by an isometry, as the distances are. For each of the 2 x 50 sample pairs (x, T(x)) of the
+  two-sided correspondence (each image read at its nearest input vertex), the RMS over a band of
+  times of h_X(x) - h_Y(T(x)); the pair's value is the RMS of the best-fitting 80% (``_0.8``) or
+  of all (``_1.0``) of them. Bands: ``all`` the 12 times, ``small`` the first 6, ``mid`` the 4th to
+  9th, ``large`` the last 6. The distances compare each sample with the others; the signature
+  compares each sample with its own image.
+- ``GEO`` (without ``--no-geodesic``): the GH estimate (and ``GEO_T`` the trimmed distortion) of
+  a second match of every pair with the geodesic metric, each mesh scaled to unit area, 50
+  samples (``gh_matrix(meshes, "geodesic", n_samples=50)``).
+
+Scores (``bench_recognition.py``): NN, first tier, EER per collection and J = mean(1 - NN, 1 - FT,
+EER) over both (``pooled_scores``), each ranking alone and the weighted geometric means C^(1-w)
+X^w (each matrix over the median of its off-diagonal values, as ``recognition_eccentricity.py``
+combines them). One nearest neighbour of the 109 queries moves J by about 0.003.
+
+``--cache DIR`` keeps each collection's matrices and the signatures at the matched samples, so
+that a stopped run continues. Resources, 2 cores: the signatures 1.7 min (watertight) and 3.8
+min (TOSCA's 50,000-vertex meshes); the diffusion matrices with every correspondence kept 12 and
+7 min; the geodesic matrices 9 and 5.5 min.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_recognition as BR  # noqa: E402
+from _common import add_data_argument, write_results  # noqa: E402
+
+from gromov.errors import GromovWarning  # noqa: E402
+
+SAMPLES = 50
+OPTIONS = {**BR.GROMOV_METRIC, "units": "area"}
+#: The signature's times, relative to the area.
+TAUS = np.geomspace(0.001, 0.3, 12)
+#: Eigenpairs of each input mesh's signature.
+EIGENPAIRS = 150
+BANDS = {"all": slice(None), "small": slice(0, 6), "mid": slice(3, 9), "large": slice(6, None)}
+KEEPS = (0.8, 1.0)
+WEIGHTS = (0.1, 0.15, 0.25, 0.35, 0.5)
+
+
+def vertex_signature(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(input ids, (n, len(TAUS)))``: log(A k_t(x, x)) at every vertex of the loaded mesh."""
+    import gromov
+
+    BR._one_thread()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GromovWarning)
+        mesh = gromov.load(path)
+    L, M, area = BR.laplacian(mesh)
+    lam, phi = BR.eigenpairs(L, M, EIGENPAIRS + mesh.n_components)
+    return np.asarray(mesh.input_ids), np.log(area * ((phi**2) @ np.exp(-np.outer(lam, TAUS * area))))
+
+
+def _signatures(files: list[str], jobs: int) -> list:
+    if jobs < 2:
+        return [vertex_signature(f) for f in files]
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork")) as pool:
+        return list(pool.map(vertex_signature, files))
+
+
+def _at(sig, ids: np.ndarray) -> np.ndarray:
+    """The signature rows of the input (file) vertex ids ``ids``."""
+    inputs, h = sig
+    pos = np.full(int(inputs.max()) + 1, -1)
+    pos[inputs] = np.arange(len(inputs))
+    return h[pos[np.asarray(ids)]]
+
+
+def matched(files: list[str], jobs: int) -> dict:
+    """The combined ranking's matrices, and each pair's signatures at its 2 x 50 sample pairs."""
+    from gromov.experiments.pairwise import gh_matrix
+
+    t = time.perf_counter()
+    sig = _signatures(files, jobs)
+    t_sig = time.perf_counter() - t
+    n = len(files)
+    pairs = list(itertools.combinations(range(n), 2))
+    t = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GromovWarning)
+        g = gh_matrix(files, "diffusion", n_samples=SAMPLES, resolution=3000, metric_options=OPTIONS, seed=0,
+                      jobs=jobs, spectral=True, rank_by="combined", keep=pairs)
+    t_match = time.perf_counter() - t
+    a, b = [], []
+    for i, j in pairs:
+        r = g.results[(i, j)]
+        a.append(np.vstack([_at(sig[i], r.x_samples), _at(sig[i], r.y_to_x_vertex)]))
+        b.append(np.vstack([_at(sig[j], r.x_to_y_vertex), _at(sig[j], r.y_samples)]))
+    return {"S": g.spectral, "G": g.trimmed, "GH": g.relative, "C": g.combined, "pairs": np.array(pairs),
+            "a": np.stack(a), "b": np.stack(b), "seconds_signatures": t_sig, "seconds_matrix": t_match}
+
+
+def geodesic(files: list[str], jobs: int) -> dict:
+    """The GH estimate and trimmed distortion of every pair matched with the geodesic metric, each
+    mesh at unit area."""
+    import gromov
+    from gromov.experiments.pairwise import gh_matrix
+
+    t = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GromovWarning)
+        meshes = []
+        for f in files:
+            m = gromov.load(f)
+            meshes.append(gromov.Mesh(np.asarray(m.vertices) / np.sqrt(m.area), m.faces))
+        g = gh_matrix(meshes, "geodesic", n_samples=SAMPLES, resolution=3000, seed=0, jobs=jobs)
+    return {"GEO": g.relative, "GEO_T": g.trimmed, "seconds_geodesic": time.perf_counter() - t}
+
+
+def distortion(m: dict, band: slice, keep: float) -> np.ndarray:
+    """``H``: per pair, the RMS of the best-fitting ``keep`` of the sample pairs' signature RMS
+    differences over ``band``."""
+    n = len(m["S"])
+    out = np.zeros((n, n))
+    for (i, j), a, b in zip(m["pairs"], m["a"], m["b"]):
+        r = np.sort(np.sqrt(np.mean((a[:, band] - b[:, band]) ** 2, axis=1)))
+        out[i, j] = out[j, i] = np.sqrt(np.mean(r[:max(1, int(round(keep * len(r))))] ** 2))
+    return out
+
+
+def collection_matrices(data: Path, name: str, per_class: int, jobs: int, cache: Path, geo: bool) -> dict:
+    files, labels = BR.collection(data, name)
+    keep = BR.class_subset(labels, per_class, 0)
+    files, labels = [str(files[i]) for i in keep], labels[keep]
+    path = cache / f"pointwise-{name}-{per_class}.npz"
+    if path.exists():
+        z = np.load(path)
+        m = {k: z[k] for k in z.files}
+    else:
+        m = matched(files, jobs)
+        np.savez(path, **m)
+    gpath = cache / f"pointwise-geodesic-{name}-{per_class}.npz"
+    if geo:
+        if gpath.exists():
+            z = np.load(gpath)
+            m.update({k: z[k] for k in z.files})
+        else:
+            gm = geodesic(files, jobs)
+            np.savez(gpath, **gm)
+            m.update(gm)
+    for band, k in itertools.product(BANDS, KEEPS):
+        m[f"H_{band}_{k}"] = distortion(m, BANDS[band], k)
+    print(f"{name}: {len(files)} shapes, signatures {float(m['seconds_signatures']):.0f} s, matrix "
+          f"{float(m['seconds_matrix']):.0f} s" + (f", geodesic {float(m['seconds_geodesic']):.0f} s" if geo else ""),
+          flush=True)
+    m["labels"] = labels
+    return m
+
+
+def geometric(mats: dict, weights: dict) -> np.ndarray:
+    """prod_k (M_k / median of its off-diagonal values)^w_k, zero diagonal."""
+    out = np.ones_like(np.asarray(mats[next(iter(weights))], dtype=float))
+    off = ~np.eye(len(out), dtype=bool)
+    for k, w in weights.items():
+        if w:
+            x = np.asarray(mats[k], dtype=float)
+            x = 0.5 * (x + x.T)
+            out = out * np.maximum(x / np.median(x[off]), 1e-12) ** w
+    np.fill_diagonal(out, 0.0)
+    return out
+
+
+def scored(cols: dict, weights: dict) -> dict:
+    mats = {c: geometric(m, weights) for c, m in cols.items()}
+    labels = {c: m["labels"] for c, m in cols.items()}
+    pooled = BR.pooled_scores(mats, labels)
+    out = {c: BR.scores(mats[c], labels[c]) for c in cols}
+    out["J"] = float(np.mean([1 - pooled["nn"], 1 - pooled["ft"], pooled["eer"]]))
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_data_argument(ap)
+    ap.add_argument("--per-class", type=int, default=6)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--no-geodesic", action="store_true", help="skip the second (geodesic) match of every pair")
+    ap.add_argument("--cache", default="/tmp/recognition-pointwise")
+    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "recognition_pointwise.json"))
+    args = ap.parse_args(argv)
+    cache = Path(args.cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    geo = not args.no_geodesic
+    cols = {c: collection_matrices(Path(args.data), c, args.per_class, args.jobs, cache, geo)
+            for c in ("watertight", "tosca")}
+    extra = [f"H_{b}_{k}" for b, k in itertools.product(BANDS, KEEPS)] + (["GEO", "GEO_T"] if geo else [])
+    alone = {k: scored(cols, {k: 1}) for k in ["S", "G", "GH", "C"] + extra}
+    combos = {f"C^{round(1 - w, 2)} {x}^{w}": scored(cols, {"C": 1 - w, x: w}) for x in extra for w in WEIGHTS}
+
+    def line(name, r):
+        return (f"  {name:<26} TOSCA {100 * r['tosca']['nn']:.1f} / {100 * r['tosca']['ft']:.1f} / "
+                f"{100 * r['tosca']['eer']:.1f}   watertight {100 * r['watertight']['nn']:.1f} / "
+                f"{100 * r['watertight']['ft']:.1f} / {100 * r['watertight']['eer']:.1f}   J {r['J']:.4f}")
+
+    print("alone (NN / FT / EER %):")
+    for k, r in alone.items():
+        print(line(k, r))
+    print("with the combined ranking, best J first:")
+    for k, r in sorted(combos.items(), key=lambda kv: kv[1]["J"])[:12]:
+        print(line(k, r))
+    seconds = {c: {k: float(m[k]) for k in ("seconds_signatures", "seconds_matrix", "seconds_geodesic") if k in m}
+               for c, m in cols.items()}
+    write_results(args.json, {"per_class": args.per_class, "samples": SAMPLES, "taus": TAUS.tolist(),
+                              "eigenpairs": EIGENPAIRS, "bands": {b: [s.start, s.stop] for b, s in BANDS.items()},
+                              "shapes": {c: len(m["labels"]) for c, m in cols.items()}, "seconds": seconds,
+                              "alone": alone, "combinations": combos})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
