@@ -516,3 +516,23 @@ def test_one_query_descent_read_off_the_complete_matrix():
     assert first["pairs_per_query"] == 2 and first["top_equal_list"] < 1.0
     down = st.query_descent(D, S, 2, 3, 1.5)
     assert down["pairs_per_query"] > 2 and down["top_equal_list"] >= first["top_equal_list"]
+
+
+def test_pointwise_study_distortion_reads_the_sample_pairs():
+    """The signature distortion of the pointwise study: zero for a pair whose signatures agree at
+    every sample pair, the RMS of the differences otherwise; trimming keeps the best-fitting
+    sample pairs, so one bad sample pair moves the trimmed value less than the full one."""
+    st = _module("recognition_pointwise")
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(3, 100, 12))
+    b = a.copy()
+    b[1] += 0.5                      # pair (0, 2): every sample pair off by 0.5 at every time
+    b[2, 0] += 10.0                  # pair (1, 2): one sample pair far off
+    m = {"S": np.zeros((3, 3)), "pairs": np.array([(0, 1), (0, 2), (1, 2)]), "a": a, "b": b}
+    full = st.distortion(m, slice(None), 1.0)
+    trimmed = st.distortion(m, slice(None), 0.8)
+    assert full[0, 1] == 0.0 and full[1, 0] == 0.0
+    assert full[0, 2] == pytest.approx(0.5) and trimmed[0, 2] == pytest.approx(0.5)
+    assert full[1, 2] == pytest.approx(1.0) and trimmed[1, 2] == 0.0
+    band = st.distortion(m, slice(0, 6), 1.0)
+    assert band[1, 2] == pytest.approx(1.0)
