@@ -27,8 +27,8 @@ pair's value could also be made of:
 
 Scores (``bench_recognition.py``): NN, first tier, EER per collection and J = mean(1 - NN, 1 - FT,
 EER) over both (``pooled_scores``), each ranking alone and the weighted geometric means C^(1-w)
-X^w (each matrix over the median of its off-diagonal values, as ``recognition_eccentricity.py``
-combines them). One nearest neighbour of the 109 queries moves J by about 0.003.
+X^w (each matrix over the median of its off-diagonal values: ``recognition_eccentricity.py``'s
+``scored``). One nearest neighbour of the 109 queries moves J by about 0.003.
 
 ``--cache DIR`` keeps each collection's matrices and the signatures at the matched samples, so
 that a stopped run continues. Resources, 2 cores: the signatures 1.7 min (watertight) and 3.8
@@ -52,6 +52,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_recognition as BR  # noqa: E402
 from _common import add_data_argument, write_results  # noqa: E402
+from recognition_eccentricity import scored  # noqa: E402
 
 from gromov.errors import GromovWarning  # noqa: E402
 
@@ -176,28 +177,6 @@ def collection_matrices(data: Path, name: str, per_class: int, jobs: int, cache:
           flush=True)
     m["labels"] = labels
     return m
-
-
-def geometric(mats: dict, weights: dict) -> np.ndarray:
-    """prod_k (M_k / median of its off-diagonal values)^w_k, zero diagonal."""
-    out = np.ones_like(np.asarray(mats[next(iter(weights))], dtype=float))
-    off = ~np.eye(len(out), dtype=bool)
-    for k, w in weights.items():
-        if w:
-            x = np.asarray(mats[k], dtype=float)
-            x = 0.5 * (x + x.T)
-            out = out * np.maximum(x / np.median(x[off]), 1e-12) ** w
-    np.fill_diagonal(out, 0.0)
-    return out
-
-
-def scored(cols: dict, weights: dict) -> dict:
-    mats = {c: geometric(m, weights) for c, m in cols.items()}
-    labels = {c: m["labels"] for c, m in cols.items()}
-    pooled = BR.pooled_scores(mats, labels)
-    out = {c: BR.scores(mats[c], labels[c]) for c in cols}
-    out["J"] = float(np.mean([1 - pooled["nn"], 1 - pooled["ft"], pooled["eer"]]))
-    return out
 
 
 def main(argv=None) -> int:
