@@ -128,6 +128,13 @@ def scored(cols: dict, weights: dict) -> dict:
     return out
 
 
+def line(name: str, r: dict) -> str:
+    """One row of a study's table: a ranking's NN / FT / EER (%) on each collection, and J."""
+    return (f"  {name:<26} TOSCA {100 * r['tosca']['nn']:.1f} / {100 * r['tosca']['ft']:.1f} / "
+            f"{100 * r['tosca']['eer']:.1f}   watertight {100 * r['watertight']['nn']:.1f} / "
+            f"{100 * r['watertight']['ft']:.1f} / {100 * r['watertight']['eer']:.1f}   J {r['J']:.4f}")
+
+
 def first_stage(m: dict, weights: dict, ks=(10, 15, 20, 30)) -> dict:
     """Fraction of queries whose 10 nearest by the combined ranking lie within the K nearest by
     the first-stage matrix."""
@@ -162,11 +169,6 @@ def main(argv=None) -> int:
     iu = {c: np.triu_indices(len(m["G"]), 1) for c, m in cols.items()}
     spearman = {c: {k: float(spearmanr(m[k][iu[c]], m["G"][iu[c]])[0]) for k in ("S", "E", "Dd", "LB", "GH")}
                 for c, m in cols.items()}
-
-    def line(name, r):
-        return (f"  {name:<26} TOSCA {100 * r['tosca']['nn']:.1f} / {100 * r['tosca']['ft']:.1f} / "
-                f"{100 * r['tosca']['eer']:.1f}   watertight {100 * r['watertight']['nn']:.1f} / "
-                f"{100 * r['watertight']['ft']:.1f} / {100 * r['watertight']['eer']:.1f}   J {r['J']:.4f}")
 
     print("alone (NN / FT / EER %):")
     for k, r in rows.items():

@@ -52,7 +52,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_recognition as BR  # noqa: E402
 from _common import add_data_argument, write_results  # noqa: E402
-from recognition_eccentricity import scored  # noqa: E402
+from recognition_eccentricity import line, scored  # noqa: E402
 
 from gromov.errors import GromovWarning  # noqa: E402
 
@@ -196,11 +196,6 @@ def main(argv=None) -> int:
     extra = [f"H_{b}_{k}" for b, k in itertools.product(BANDS, KEEPS)] + (["GEO", "GEO_T"] if geo else [])
     alone = {k: scored(cols, {k: 1}) for k in ["S", "G", "GH", "C"] + extra}
     combos = {f"C^{round(1 - w, 2)} {x}^{w}": scored(cols, {"C": 1 - w, x: w}) for x in extra for w in WEIGHTS}
-
-    def line(name, r):
-        return (f"  {name:<26} TOSCA {100 * r['tosca']['nn']:.1f} / {100 * r['tosca']['ft']:.1f} / "
-                f"{100 * r['tosca']['eer']:.1f}   watertight {100 * r['watertight']['nn']:.1f} / "
-                f"{100 * r['watertight']['ft']:.1f} / {100 * r['watertight']['eer']:.1f}   J {r['J']:.4f}")
 
     print("alone (NN / FT / EER %):")
     for k, r in alone.items():
