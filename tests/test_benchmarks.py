@@ -536,3 +536,18 @@ def test_pointwise_study_distortion_reads_the_sample_pairs():
     assert full[1, 2] == pytest.approx(1.0) and trimmed[1, 2] == 0.0
     band = st.distortion(m, slice(0, 6), 1.0)
     assert band[1, 2] == pytest.approx(1.0)
+
+
+def test_pointwise_study_reads_each_side_at_its_own_samples_and_images():
+    """``read_along``: X's signature at X's samples and at Y's samples' images, Y's at X's
+    samples' images and at Y's samples, each looked up by input vertex id (ids need not be
+    0..n-1: a loader may drop vertices)."""
+    st = _module("recognition_pointwise")
+    # shape k: input ids 10 * k + (0..4), signature row r = [100 k + r, -(100 k + r)]
+    sig = [(10 * k + np.arange(5), np.c_[100 * k + np.arange(5.0), -(100 * k + np.arange(5.0))]) for k in range(3)]
+    ids = np.array([[[20, 21], [24, 23], [11, 10], [12, 13]]])   # x_samples, y_to_x, x_to_y, y_samples
+    a, b = st.read_along(sig, np.array([(2, 1)]), ids)
+    assert a.shape == b.shape == (1, 4, 2)
+    assert a[0, :, 0].tolist() == [200, 201, 204, 203]   # X = shape 2: its samples, then Y's images on X
+    assert b[0, :, 0].tolist() == [101, 100, 102, 103]   # Y = shape 1: X's images on Y, then its samples
+    assert np.array_equal(a[0, :, 1], -a[0, :, 0])

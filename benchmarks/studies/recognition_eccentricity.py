@@ -119,8 +119,12 @@ def geometric(mats: dict, weights: dict) -> np.ndarray:
     return out
 
 
-def scored(cols: dict, weights: dict) -> dict:
+def scored(cols: dict, weights: dict, then=None) -> dict:
+    """Scores of the weighted geometric mean of each collection's matrices (``then``: a function
+    applied to each collection's matrix before scoring, e.g. a set-level re-ranking)."""
     mats = {c: geometric(m, weights) for c, m in cols.items()}
+    if then is not None:
+        mats = {c: then(M) for c, M in mats.items()}
     labels = {c: m["labels"] for c, m in cols.items()}
     pooled = BR.pooled_scores(mats, labels)
     out = {c: BR.scores(mats[c], labels[c]) for c in cols}
