@@ -1,11 +1,11 @@
 """Two more per-pair rankings: the heat kernel signature's distortion along the match, and a second metric.
 
 Run:  nice -n 10 .venv/bin/python benchmarks/studies/recognition_pointwise.py [--data DIR] [--per-class 6]
-          [--jobs 2] [--no-geodesic] [--orientation prefer|ignore] [--working] [--cache DIR]
+          [--jobs 2] [--no-geodesic] [--orientation prefer|ignore] [--working] [--weights W,W,...] [--cache DIR]
           [--json benchmarks/studies/recognition_pointwise.json]
 
 The whole collections (``recognition_pointwise_full.json``): ``--per-class 0 --no-geodesic
---orientation ignore --working``.
+--orientation ignore --working --weights 0.1,0.15,0.25,0.35,0.5,0.65,0.75``.
 
 On the subsets of ``recognition_defaults.py`` (``class_subset(labels, 6, seed=0)``: 60 watertight
 shapes, 49 TOSCA shapes), each collection's matrices as ``gromov pairwise FILES --units area
@@ -37,9 +37,9 @@ Scores (``bench_recognition.py``): NN, first tier, EER per collection and J = me
 EER) over both (``pooled_scores``), each ranking alone and the weighted geometric means C^(1-w)
 X^w (each matrix over the median of its off-diagonal values: ``recognition_eccentricity.py``'s
 ``scored``). One nearest neighbour of the 109 queries moves J by about 0.003 (of the 280, about
-0.0012). Then C and the four best combinations after the set-level diffusion re-ranking that
-``gromov pairwise`` reports beside the EER (``diffusion_rerank``, k = 8, three steps; each
-collection on its own).
+0.0012). Then C and the two best combinations of each candidate after the set-level diffusion
+re-ranking that ``gromov pairwise`` reports beside the EER (``diffusion_rerank``, k = 8, three
+steps; each collection on its own).
 
 ``--orientation ignore`` reads the signatures along the map whose distortion the matrices hold
 (``gh_matrix(keep=..., orientation="ignore")``: a mirror image as good as any), which also saves
@@ -258,9 +258,14 @@ def main(argv=None) -> int:
     ap.add_argument("--working", action="store_true",
                     help="also W: the signature of gromov's working meshes (cotangent Laplacian), read along the same "
                          "matches")
+    ap.add_argument("--weights", default=",".join(map(str, WEIGHTS)),
+                    help="the weights w of the candidate in C^(1-w) X^w, comma-separated")
     ap.add_argument("--cache", default="/tmp/recognition-pointwise")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "studies" / "recognition_pointwise.json"))
     args = ap.parse_args(argv)
+    weights = [float(w) for w in args.weights.split(",")]
+    if not all(0.0 < w < 1.0 for w in weights):
+        ap.error(f"--weights must lie in (0, 1), got {args.weights}")
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     geo = not args.no_geodesic
@@ -270,7 +275,8 @@ def main(argv=None) -> int:
     extra = [f"{x}_{b}_{k}" for x in ("HW" if args.working else "H") for b, k in itertools.product(BANDS, KEEPS)] \
         + (["GEO", "GEO_T"] if geo else [])
     alone = {k: scored(cols, {k: 1}) for k in ["S", "G", "GH", "C"] + extra}
-    combos = {f"C^{round(1 - w, 2)} {x}^{w}": scored(cols, {"C": 1 - w, x: w}) for x in extra for w in WEIGHTS}
+    combos = {f"C^{round(1 - w, 2)} {x}^{w}": scored(cols, {"C": 1 - w, x: w}) for x in extra
+              for w in weights}
 
     print("alone (NN / FT / EER %):")
     for k, r in alone.items():
@@ -281,7 +287,9 @@ def main(argv=None) -> int:
     # the set-level diffusion that `gromov pairwise` reports beside the EER, on the best of each
     from gromov.experiments.recognition import diffusion_rerank
 
-    best = ["C"] + [k for k, _ in sorted(combos.items(), key=lambda kv: kv[1]["J"])[:4]]
+    ranked = [k for k, _ in sorted(combos.items(), key=lambda kv: kv[1]["J"])]
+    best = ["C"] + [k for fam in dict.fromkeys(k.split()[1].split("_")[0] for k in ranked)
+                    for k in [k for k in ranked if k.split()[1].split("_")[0] == fam][:2]]
     rerank = {k: scored(cols, {"C": 1} if k == "C" else _weights(k), then=diffusion_rerank) for k in best}
     print("after the diffusion re-ranking (k = 8, three steps):")
     for k, r in rerank.items():
@@ -289,7 +297,8 @@ def main(argv=None) -> int:
     seconds = {c: {k: float(m[k]) for k in ("seconds_signatures", "seconds_matrix", "seconds_geodesic",
                                             "seconds_working") if k in m}
                for c, m in cols.items()}
-    write_results(args.json, {"per_class": args.per_class, "orientation": args.orientation, "samples": SAMPLES, "taus": TAUS.tolist(),
+    write_results(args.json, {"per_class": args.per_class, "orientation": args.orientation, "samples": SAMPLES, "weights": weights,
+                              "taus": TAUS.tolist(),
                               "eigenpairs": EIGENPAIRS, "bands": {b: [s.start, s.stop] for b, s in BANDS.items()},
                               "shapes": {c: len(m["labels"]) for c, m in cols.items()}, "seconds": seconds,
                               "alone": alone, "combinations": combos, "diffusion_reranked": rerank})
