@@ -51,8 +51,8 @@ matching again. Resources, 2 cores: the subsets' signatures 1.7 min (watertight)
 (TOSCA's 50,000-vertex meshes); their diffusion matrices with every correspondence kept 12 and 7
 min; the geodesic matrices 9 and 5.5 min. The whole collections (``--orientation ignore``): the
 signatures 6.3 and 7.2 min, the matrices 72 and 13.4 min, the working meshes' signatures 2.2 and
-1.3 min, and 20 GB of memory (every prepared
-shape's distances and every correspondence held at once).
+1.3 min, and 20 GB of memory (every prepared shape's distances and every correspondence held at
+once).
 """
 
 from __future__ import annotations
@@ -239,13 +239,6 @@ def collection_matrices(data: Path, name: str, per_class: int, jobs: int, cache:
     return m
 
 
-def _weights(label: str) -> dict:
-    """``{"C": 1 - w, X: w}`` of a combination's label ``"C^(1-w) X^w"``."""
-    c, x = label.split()
-    name, w = x.rsplit("^", 1)
-    return {"C": float(c.split("^")[1]), name: float(w)}
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_data_argument(ap)
@@ -275,8 +268,8 @@ def main(argv=None) -> int:
     extra = [f"{x}_{b}_{k}" for x in ("HW" if args.working else "H") for b, k in itertools.product(BANDS, KEEPS)] \
         + (["GEO", "GEO_T"] if geo else [])
     alone = {k: scored(cols, {k: 1}) for k in ["S", "G", "GH", "C"] + extra}
-    combos = {f"C^{round(1 - w, 2)} {x}^{w}": scored(cols, {"C": 1 - w, x: w}) for x in extra
-              for w in weights}
+    mixes = {f"C^{round(1 - w, 2)} {x}^{w}": (x.split("_")[0], {"C": 1 - w, x: w}) for x in extra for w in weights}
+    combos = {k: scored(cols, mix) for k, (_, mix) in mixes.items()}
 
     print("alone (NN / FT / EER %):")
     for k, r in alone.items():
@@ -287,18 +280,19 @@ def main(argv=None) -> int:
     # the set-level diffusion that `gromov pairwise` reports beside the EER, on the best of each
     from gromov.experiments.recognition import diffusion_rerank
 
-    ranked = [k for k, _ in sorted(combos.items(), key=lambda kv: kv[1]["J"])]
-    best = ["C"] + [k for fam in dict.fromkeys(k.split()[1].split("_")[0] for k in ranked)
-                    for k in [k for k in ranked if k.split()[1].split("_")[0] == fam][:2]]
-    rerank = {k: scored(cols, {"C": 1} if k == "C" else _weights(k), then=diffusion_rerank) for k in best}
+    ranked = sorted(combos, key=lambda k: combos[k]["J"])
+    best = {"C": {"C": 1}}
+    for family in dict.fromkeys(mixes[k][0] for k in ranked):
+        best.update((k, mixes[k][1]) for k in [k for k in ranked if mixes[k][0] == family][:2])
+    rerank = {k: scored(cols, mix, then=diffusion_rerank) for k, mix in best.items()}
     print("after the diffusion re-ranking (k = 8, three steps):")
     for k, r in rerank.items():
         print(line(k, r))
     seconds = {c: {k: float(m[k]) for k in ("seconds_signatures", "seconds_matrix", "seconds_geodesic",
                                             "seconds_working") if k in m}
                for c, m in cols.items()}
-    write_results(args.json, {"per_class": args.per_class, "orientation": args.orientation, "samples": SAMPLES, "weights": weights,
-                              "taus": TAUS.tolist(),
+    write_results(args.json, {"per_class": args.per_class, "orientation": args.orientation, "samples": SAMPLES,
+                              "weights": weights, "taus": TAUS.tolist(),
                               "eigenpairs": EIGENPAIRS, "bands": {b: [s.start, s.stop] for b, s in BANDS.items()},
                               "shapes": {c: len(m["labels"]) for c, m in cols.items()}, "seconds": seconds,
                               "alone": alone, "combinations": combos, "diffusion_reranked": rerank})
