@@ -139,6 +139,13 @@ def line(name: str, r: dict) -> str:
             f"{100 * r['watertight']['ft']:.1f} / {100 * r['watertight']['eer']:.1f}   J {r['J']:.4f}")
 
 
+def table(title: str, rows) -> None:
+    """Print a study's table: its title, then a :func:`line` per ``(name, scores)`` of ``rows``."""
+    print(title)
+    for name, r in rows:
+        print(line(name, r))
+
+
 def first_stage(m: dict, weights: dict, ks=(10, 15, 20, 30)) -> dict:
     """Fraction of queries whose 10 nearest by the combined ranking lie within the K nearest by
     the first-stage matrix."""
@@ -174,12 +181,8 @@ def main(argv=None) -> int:
     spearman = {c: {k: float(spearmanr(m[k][iu[c]], m["G"][iu[c]])[0]) for k in ("S", "E", "Dd", "LB", "GH")}
                 for c, m in cols.items()}
 
-    print("alone (NN / FT / EER %):")
-    for k, r in rows.items():
-        print(line(k, r))
-    print("combinations, best J first:")
-    for k, r in sorted(combos.items(), key=lambda kv: kv[1]["J"])[:10]:
-        print(line(k, r))
+    table("alone (NN / FT / EER %):", rows.items())
+    table("combinations, best J first:", sorted(combos.items(), key=lambda kv: kv[1]["J"])[:10])
     print("first stage (queries whose combined ten nearest lie within the K nearest):")
     for c, st in stages.items():
         for name, r in st.items():

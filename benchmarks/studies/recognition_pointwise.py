@@ -72,7 +72,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))   # the sibling study i
 
 import bench_recognition as BR  # noqa: E402
 from _common import add_data_argument, write_results  # noqa: E402
-from recognition_eccentricity import line, scored  # noqa: E402
+from recognition_eccentricity import scored, table  # noqa: E402
 
 from gromov.errors import GromovWarning  # noqa: E402
 
@@ -97,7 +97,12 @@ def vertex_signature(path: str) -> tuple[np.ndarray, np.ndarray]:
         mesh = gromov.load(path)
     L, M, area = BR.laplacian(mesh)
     lam, phi = BR.eigenpairs(L, M, EIGENPAIRS + mesh.n_components)
-    return np.asarray(mesh.input_ids), np.log(area * ((phi**2) @ np.exp(-np.outer(lam, TAUS * area))))
+    return np.asarray(mesh.input_ids), heat_signature(lam, phi, area)
+
+
+def heat_signature(lam: np.ndarray, phi: np.ndarray, area: float) -> np.ndarray:
+    """``(n, len(TAUS))``: log(A k_t(x, x)) at t = tau A from the eigenpairs ``(lam, phi)``."""
+    return np.log(area * ((phi**2) @ np.exp(-np.outer(np.maximum(lam, 0.0), TAUS * area))))
 
 
 def working_signature(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -119,7 +124,7 @@ def working_signature(path: str) -> tuple[np.ndarray, np.ndarray]:
     _, L, M, area = _laplacian(work, "cotan", "a heat kernel signature")
     lam, phi = _shift_invert_eigsh(L, M, min(work.n_vertices - 2, EIGENPAIRS + work.n_components),
                                    sigma=-1e-2 / area)
-    h = np.log(area * ((phi**2) @ np.exp(-np.outer(np.maximum(lam, 0.0), TAUS * area))))
+    h = heat_signature(lam, phi, area)
     _, near = cKDTree(np.asarray(work.vertices)).query(np.asarray(inp.vertices))
     return np.asarray(inp.input_ids), h[near]
 
@@ -271,23 +276,17 @@ def main(argv=None) -> int:
     mixes = {f"C^{round(1 - w, 2)} {x}^{w}": (x.split("_")[0], {"C": 1 - w, x: w}) for x in extra for w in weights}
     combos = {k: scored(cols, mix) for k, (_, mix) in mixes.items()}
 
-    print("alone (NN / FT / EER %):")
-    for k, r in alone.items():
-        print(line(k, r))
-    print("with the combined ranking, best J first:")
-    for k, r in sorted(combos.items(), key=lambda kv: kv[1]["J"])[:12]:
-        print(line(k, r))
+    ranked = sorted(combos, key=lambda k: combos[k]["J"])
+    table("alone (NN / FT / EER %):", alone.items())
+    table("with the combined ranking, best J first:", [(k, combos[k]) for k in ranked[:12]])
     # the set-level diffusion that `gromov pairwise` reports beside the EER, on the best of each
     from gromov.experiments.recognition import diffusion_rerank
 
-    ranked = sorted(combos, key=lambda k: combos[k]["J"])
     best = {"C": {"C": 1}}
     for family in dict.fromkeys(mixes[k][0] for k in ranked):
         best.update((k, mixes[k][1]) for k in [k for k in ranked if mixes[k][0] == family][:2])
     rerank = {k: scored(cols, mix, then=diffusion_rerank) for k, mix in best.items()}
-    print("after the diffusion re-ranking (k = 8, three steps):")
-    for k, r in rerank.items():
-        print(line(k, r))
+    table("after the diffusion re-ranking (k = 8, three steps):", rerank.items())
     seconds = {c: {k: float(m[k]) for k in ("seconds_signatures", "seconds_matrix", "seconds_geodesic",
                                             "seconds_working") if k in m}
                for c, m in cols.items()}
