@@ -36,8 +36,11 @@ in one run:
 
 - **gromov combined** (``--methods combined``): :func:`gromov.experiments.gh_matrix` as ``gromov
   pairwise FILES --units area --samples 50 --rank-by combined`` runs it (each shape measured at
-  unit area; each pair ranked by S^0.35 G^0.65, S the Shape-DNA distance of the working meshes, G
-  the trimmed distortion; docs/design/recognition.md, "Across collections"), on
+  unit area; each pair ranked by (S^0.35 G^0.65)^0.5 H^0.5, S the Shape-DNA distance of the
+  working meshes, G the trimmed distortion, H the heat kernel signature's distortion along the
+  correspondence; docs/design/recognition.md, "Across collections"; two more rows read the same
+  matches: without H, S^0.35 G^0.65, and after the set-level diffusion re-ranking that ``gromov
+  pairwise`` reports beside the EER), on
   ``--combined-per-class`` shapes of each class (0: all); with ``--candidates C`` as a two-stage
   search (``--candidates C``): only each shape's C nearest by S are matched, with ``--k K``
   then each shape's K nearest searched by neighbour descent (``gromov pairwise --candidates C
@@ -326,11 +329,19 @@ def combined_matrix(files, args) -> dict:
                       seed=args.seed, jobs=args.jobs, spectral=True, candidates=args.candidates, k=args.k,
                       rank_by="combined")
     wall = time.perf_counter() - t
-    D = g.combined.copy()
+    from gromov.spectrum import combined
+
     S = g.spectral
-    miss = np.isnan(D)
-    D[miss] = np.nanmax(D) + 1.0 + S[miss] / (S.max() + 1e-300)
-    return {"combined": D, "spectral": S, "trimmed": g.trimmed, "gh": g.relative, "complete": not miss.any(), "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
+    miss = np.isnan(g.combined)
+
+    def ranked(D):   # unmatched pairs after the matched ones, by their spectral distance
+        D = D.copy()
+        D[miss] = np.nanmax(D) + 1.0 + S[miss] / (S.max() + 1e-300)
+        return D
+
+    return {"combined": ranked(g.combined), "without_signature": ranked(combined(S, g.trimmed)), "spectral": S,
+            "trimmed": g.trimmed, "gh": g.relative, "signature": g.signature, "complete": not miss.any(),
+            "matched": int(len(files) * (len(files) - 1) // 2 - g.skipped),
             "seconds": wall, "seconds_prepare": g.seconds_prepare, "seconds_match": g.seconds_match}
 
 
@@ -453,7 +464,8 @@ def main(argv=None) -> None:
             if cache is not None:
                 np.savez(cache / (f"combined-{name}-pc{per}-s{args.combined_samples}-c{args.candidates or 0}"
                                   + (f"-k{args.k}" if args.k else "") + f"-seed{args.seed}.npz"), files=np.array([files[i].name for i in csub]),
-                         combined=g["combined"], spectral=g["spectral"], trimmed=g["trimmed"], gh=g["gh"])
+                         combined=g["combined"], spectral=g["spectral"], trimmed=g["trimmed"], gh=g["gh"],
+                         signature=g["signature"])
             row = (f"gromov --units area --samples {args.combined_samples} --rank-by combined"
                    + (f" --candidates {args.candidates}" if args.candidates else "")
                    + (f" -k {args.k}" if args.k else ""))
@@ -467,6 +479,13 @@ def main(argv=None) -> None:
                                 "seconds_per_pair": g["seconds_match"] * args.jobs / max(g["matched"], 1)}
             print(f"  combined   NN {sc['nn']:.3f}  FT {sc['ft']:.3f}  EER {sc['eer']}  {g['seconds']:.1f} s "
                   f"({g['matched']} pairs)", flush=True)
+            if g["complete"]:   # the same matches ranked without the signature, and re-ranked
+                from gromov.experiments.recognition import diffusion_rerank
+
+                out["rows"][row + " (without the signature distortion)"] = {
+                    **scores(g["without_signature"], labels[csub]), "same_matches_as": row}
+                out["rows"][row + " (after the diffusion re-ranking)"] = {
+                    **scores(diffusion_rerank(g["combined"]), labels[csub]), "same_matches_as": row}
         res["collections"][name] = out
         write_results(args.json, {**res, "complete": False})
     res["ratios"] = ratios(res)
@@ -502,8 +521,10 @@ def print_table(res: dict) -> None:
     for name, c in res["collections"].items():
         for meth, r in c["rows"].items():
             pair = f"{r['seconds_per_pair']:8.3f}" if "seconds_per_pair" in r else f"{'':>8}"
+            # (a row that re-reads another's matches has no time of its own)
+            times = f"{r['seconds']:>9.1f}{r['seconds_per_shape']:>9.2f}" if "seconds" in r else f"{'':>18}"
             print(f"{name:<11}{meth:<28}{r['shapes']:>7}{r['nn']:>7.3f}{r['ft']:>7.3f}{r['st']:>7.3f}"
-                  f"{r['eer'] if r['eer'] is not None else float('nan'):>7.3f}{r['seconds']:>9.1f}{r['seconds_per_shape']:>9.2f}{pair}")
+                  f"{r['eer'] if r['eer'] is not None else float('nan'):>7.3f}{times}{pair}")
     for key, r in res.get("ratios", {}).items():
         print(f"{key}: {r['time']:.1f}x the single-process time; NN {r['nn_difference']:+.3f}, "
               f"FT {r['ft_difference']:+.3f}, EER {r['eer_difference']:+.3f}")

@@ -107,8 +107,11 @@ def test_pairwise_ranks_by_the_combined_distance(tmp_path, capsys):
     base = ["pairwise", *files, "--metric", "geodesic", "--samples", "15", "--jobs", "1"]
     assert main([*base, "--rank-by", "combined", "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
-    C, S, G = (np.array(res[k]) for k in ("combined_distance", "spectral_distance", "relative_trimmed_distance"))
-    np.testing.assert_allclose(C, combined(S, G))
+    C, S, G, H = (np.array(res[k]) for k in ("combined_distance", "spectral_distance", "relative_trimmed_distance",
+                                             "signature_distortion"))
+    np.testing.assert_allclose(C, combined(S, G, signature=H))
+    off = ~np.eye(len(C), dtype=bool)
+    assert np.all(H[off] > 0) and not np.allclose(C, combined(S, G))
     assert res["ranked_by"] == "combined"
     assert main([*base, "--candidates", "1", "--json"]) == 0
     two = json.loads(capsys.readouterr().out)

@@ -242,12 +242,13 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
            metric_options: dict | None = None, radius: float | None = None, orientation: str = "prefer",
            search: SearchOptions = SearchOptions(), dense: bool | str = False,
            rank_tau_scale: float | None = None, rank_residual: str = "difference",
-           as_prepared: bool = False, interval: bool = False) -> MatchResult:
+           as_prepared: bool = False, interval: bool = False, signature: bool = False) -> MatchResult:
     """:func:`match`, and what recognition ranks by (:func:`gromov.experiments.gh_matrix`):
     ``ranking_distance`` measured with the heat distance at ``rank_tau_scale`` times the
     diffusion time, of ``rank_residual`` (:func:`ranking_value`). ``as_prepared``: use prepared
     shapes in their own metric (recognition's units) instead of the correspondence's.
-    ``interval``: compute :attr:`MatchResult.gh_interval`."""
+    ``interval``: compute :attr:`MatchResult.gh_interval`. ``signature``: compute
+    :attr:`MatchResult.signature_distortion`."""
     t0 = time.perf_counter()
     p = parse_norm(norm)
     _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residual)
@@ -267,6 +268,8 @@ def _match(X, Y, metric: str = "diffusion", *, n_samples: int = 100, norm="l2", 
     extra = _dense_fields(sx, sy, P, Q, fit, dense) if dense else {}
     if interval:
         extra["gh_interval"] = _gh_interval(sx, sy, P, Q, fit, discrete)
+    if signature:
+        extra["signature_distortion"] = _signature_distortion(sx, sy, P, Q, fit, discrete)
     norm_name = "l2" if p == 2 else ("linf" if np.isinf(p) else f"p:{p:g}")
     return MatchResult(
         distance=0.5 * dis, relative_distance=0.5 * dis / diam, distortion=dis,
@@ -327,6 +330,21 @@ def _gh_interval(sx, sy, P, Q, fit: _Fit, discrete: bool) -> tuple[float, float]
     q_to_p = np.argmin(DX[np.ix_(vertices(sx, fit.img_q), P)], axis=1)
     lower, upper = sample_gh_interval(DX[np.ix_(P, P)], DY[np.ix_(Q, Q)], p_to_q, q_to_p)
     return float(lower), float(upper)
+
+
+def _signature_distortion(sx, sy, P, Q, fit: _Fit, discrete: bool) -> float:
+    """:func:`gromov.spectrum.signature_distortion` of the final correspondence: each shape's
+    heat kernel signature at its samples and, interpolated on the working faces, at the other
+    shape's samples' images."""
+    from .spectrum import heat_signature, signature_distortion
+
+    hx, hy = heat_signature(sx), heat_signature(sy)
+
+    def at(s, h, img):
+        return h[np.asarray(img, dtype=np.int64)] if discrete else img.positions(h, s.mesh.faces)
+
+    return signature_distortion(np.vstack([hx[P], at(sx, hx, fit.img_q)]),
+                                np.vstack([at(sy, hy, fit.img_p), hy[Q]]))
 
 
 def _check_choices(solver, init, orientation, dense, rank_tau_scale, rank_residual) -> None:

@@ -68,6 +68,11 @@ class MatchResult:
         and columns are first X's M samples (on Y: their images), then Y's K samples (on X:
         their images), in the order of ``x_samples`` and ``y_samples``. Where a shape's
         topology changed, the pairs whose paths run through the change can stand out.
+    signature_distortion : float
+        How far the correspondence is from keeping the heat kernel signature of the working
+        meshes (:func:`gromov.spectrum.signature_distortion`): a factor of recognition's
+        ``combined`` ranking. Only :func:`gromov.experiments.gh_matrix` with spectral
+        signatures computes it (NaN otherwise).
     gh_interval : (float, float)
         A certified interval ``(lower, upper)`` around the Gromov-Hausdorff distance between
         the two sample sets, :math:`d_{GH}(P, Q)` with the shapes' distances (the metric of the
@@ -117,6 +122,7 @@ class MatchResult:
     pair_distortion: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     history: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     gh_interval: tuple[float, float] = (float("nan"), float("nan"))
+    signature_distortion: float = float("nan")
     x_to_y_dense_face: np.ndarray | None = field(repr=False, default=None)
     x_to_y_dense_bary: np.ndarray | None = field(repr=False, default=None)
     x_to_y_dense_vertex: np.ndarray | None = field(repr=False, default=None)

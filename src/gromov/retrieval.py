@@ -124,6 +124,9 @@ _RANK_BY = ("trimmed", "gh")
 _NEAREST_RANK_BY = ("trimmed", "gh", "combined")
 #: Name (with the length appended) of the spectral signature kept beside a store entry.
 SPECTRUM_NAME = "spectrum-1"
+#: Name (with the eigenpairs appended) of the heat kernel signature kept beside a store entry
+#: (:func:`gromov.spectrum.heat_signature`; read by the combined ranking).
+HEAT_SIGNATURE_NAME = "heat-signature-1"
 
 
 @dataclass(frozen=True, eq=False)
@@ -501,6 +504,18 @@ def _ranked(result, rank_by: str) -> float:
     return float(result.ranking_distance if rank_by == "trimmed" else result.relative_distance)
 
 
+def _combined_value(spectral: float, result, rank_by: str, weight) -> float:
+    """A matched candidate's ranked value: ``rank_by``'s, or with ``weight`` (the combined
+    ranking) :func:`gromov.spectrum.combined` of the spectral distance, it and the result's
+    signature distortion."""
+    v = _ranked(result, rank_by)
+    if weight is None:
+        return v
+    from .spectrum import combined
+
+    return float(combined(spectral, v, weight, signature=result.signature_distortion))
+
+
 def _options(n_samples, seed, rank_tau_scale, rank_residual, match_options, caller) -> dict:
     match_options = _upgrade_options(match_options, caller, stacklevel=4)
     match_options.pop("orientation", None)   # the GH estimate: the lowest distortion found
@@ -538,9 +553,11 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         As in :func:`gromov.experiments.gh_matrix` (recognition's metric: raw heat units).
     rank_by : {"trimmed", "gh", "combined"}, default "trimmed"
         The trimmed distortion (``PairwiseGH.trimmed``), the relative GH estimate, or the
-        trimmed distortion and the spectral distance together (``PairwiseGH.combined``,
-        :func:`gromov.spectrum.combined`; the keys and bounds below become S^w times theirs
-        to the power 1 - w, which keeps a lower bound a lower bound; no triangle estimates).
+        trimmed distortion, the spectral distance and the signature distortion together
+        (``PairwiseGH.combined``, :func:`gromov.spectrum.combined`). The signature distortion
+        has no lower bound from per-shape invariants, so the combined ranking prunes nothing:
+        every candidate is matched, in order of spectral distance, unless ``candidates``
+        limits them.
     rank_tau_scale, rank_residual
         As in :func:`gromov.experiments.gh_matrix`.
     prune : {"profile", "bound", "none"}, default "profile"
@@ -594,9 +611,11 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         triangle = None   # recorded values are not the combined ones; a two-stage search matches them all
     rank_tau_scale = check_rank_tau_scale(rank_tau_scale)
     options = _options(n_samples, seed, rank_tau_scale, rank_residual, match_options, "nearest")
+    if combine:
+        options["signature"] = True
     shape_args = {"resolution": resolution, "metric_options": metric_options}
     candidates, query_shape, recorded = _candidates(query, shapes, metric, shape_args, n_samples, seed,
-                                                    rank_tau_scale)
+                                                    rank_tau_scale, signature=combine)
     if not candidates:
         raise ValueError("no shapes to search: the collection is empty (or holds only the query)")
     known = {(int(i), int(j)): v for (i, j), v in (known or {}).items()}
@@ -624,13 +643,13 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
     from tqdm import tqdm
 
     spectral = weight = None
-    keys = _keys(bounds, gaps, prune, slack)
-    if combine:   # S^w B^(1 - w) <= S^w G^(1 - w) wherever B <= G
-        from .spectrum import SPECTRUM_WEIGHT, combined
+    keys, ties = _keys(bounds, gaps, prune, slack), gaps
+    if combine:   # no lower bound (the signature distortion has none): all matched, nearest S first
+        from .spectrum import SPECTRUM_WEIGHT
 
         spectral = _spectral_to(query_shape, candidates)
         weight = SPECTRUM_WEIGHT
-        keys = np.where(np.isfinite(keys), spectral**weight * np.maximum(keys, 0.0) ** (1.0 - weight), keys)
+        keys, ties = np.zeros(len(candidates)), spectral
     todo = np.arange(len(candidates))
     bar = tqdm(total=len(todo), desc="nearest", disable=not progress, leave=False)
 
@@ -638,15 +657,14 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         out = []
         for (_, j) in pairs:
             r = _match(query_shape, candidates[j].shape(), metric, **options)
-            v = _ranked(r, rank_by)
-            out.append(float(combined(spectral[j], v, weight)) if combine else v)
+            out.append(_combined_value(None if spectral is None else spectral[j], r, rank_by, weight))
             bar.update(1)
         return out
 
     pairs = [(0, int(j)) for j in todo]
     try:
         values, rows, n_run, n_skipped = _schedule(pairs, lambda ij: [(0, ij[1])], keys[todo],
-                                                   gaps[todo], min(k, len(candidates)), 1, run, known={},
+                                                   ties[todo], min(k, len(candidates)), 1, run, known={},
                                                    triangle=triangle, nodes=lambda ij: (-1, ij[1]))
     finally:
         bar.close()
@@ -672,7 +690,7 @@ def _two_stage(query_shape, candidates, k, n_first, spectral, weight, rank_by, k
     from tqdm import tqdm
 
     from .experiments.pairwise import DESCENT
-    from .spectrum import combined, signature_distance
+    from .spectrum import signature_distance
 
     n = len(candidates)
 
@@ -688,8 +706,8 @@ def _two_stage(query_shape, candidates, k, n_first, spectral, weight, rank_by, k
     with tqdm(total=len(todo), desc="nearest", disable=not progress, leave=False) as bar:
         while len(todo):
             for j in todo.tolist():
-                v = _ranked(_match(query_shape, candidates[j].shape(), metric, **options), rank_by)
-                values[j] = float(combined(spectral[j], v, weight)) if weight is not None else v
+                r = _match(query_shape, candidates[j].shape(), metric, **options)
+                values[j] = _combined_value(spectral[j], r, rank_by, weight)
                 bar.update(1)
             todo = np.empty(0, np.int64) if graph is None else _descent_candidates(values, graph, m)
             bar.total += len(todo)
@@ -704,8 +722,9 @@ def _two_stage(query_shape, candidates, k, n_first, spectral, weight, rank_by, k
 def _known_matrix(n: int, known: dict, recorded: dict, rank_by: str, weight, spectral_between):
     """``(n, n)`` ranked values between candidates, NaN where unknown (None when none is):
     ``known`` as given (already in the ranking), ``recorded`` pairs ``(distance, relative,
-    ranking)`` read in it (``weight``: combined with ``spectral_between(i, j)``, the spectral
-    distances of those pairs)."""
+    ranking, signature)`` read in it (``weight``: combined with ``spectral_between(i, j)``, the
+    spectral distances of those pairs, and their signature distortions: NaN, unknown, where a
+    pair was recorded without one)."""
     if not known and not recorded:
         return None
     R = np.full((n, n), np.nan)
@@ -716,7 +735,8 @@ def _known_matrix(n: int, known: dict, recorded: dict, rank_by: str, weight, spe
         if weight is not None:
             from .spectrum import combined
 
-            v = combined(spectral_between(i, j), v, weight)
+            h = np.array([val[3] for val in recorded.values()], dtype=np.float64)
+            v = combined(spectral_between(i, j), v, weight, signature=h)
         R[i, j] = R[j, i] = v
     for (i, j), v in known.items():
         R[i, j] = R[j, i] = v
@@ -879,14 +899,16 @@ class _Candidate:
         return self._shape() if callable(self._shape) else self._shape
 
 
-def _candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale):
+def _candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale, signature=False):
     """``(candidates, prepared query, recorded)`` from a store or a sequence of shapes;
     ``recorded(match options)``: the store's recorded pairs between candidates, ``{(i, j):
-    (distance, relative, ranking)}`` by candidate position (None without a store)."""
+    (distance, relative, ranking, signature)}`` by candidate position (None without a store).
+    ``signature``: a store entry's heat kernel signature is read from beside it, or computed
+    and kept there, when it is matched."""
     from .store import ShapeStore
 
     if isinstance(shapes, ShapeStore) or (isinstance(shapes, (str, os.PathLike)) and os.path.isdir(shapes)):
-        return _store_candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale)
+        return _store_candidates(query, shapes, metric, shape_args, n_samples, seed, rank_tau_scale, signature)
     if isinstance(shapes, (str, os.PathLike)):
         from .store import StoreError
 
@@ -913,7 +935,7 @@ def _prepared(s, metric, shape_args) -> ShapeMetric:
     return ShapeMetric(s, metric, **shape_args)
 
 
-def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_tau_scale):
+def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_tau_scale, signature=False):
     """The store's entries with these options (the query's own entry left out), their
     invariants read from the store or computed from the entry and kept there."""
     from . import __version__
@@ -983,8 +1005,25 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
         found = store.pair_values_among(at, match_options_key(options["n_samples"], options["seed"], rest))
         return {(at[x], at[y]): v for (x, y), v in found.items()}
 
-    return ([_Candidate(e.path or e.key, bound_of(e), (lambda e=e: _entry_shape(store, e, shape_args, tau)),
-                        spectrum_of(e)) for e in kept], q, recorded)
+    from .spectrum import SIGNATURE_EIGENPAIRS, heat_signature
+
+    heat_name = f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}"
+
+    def shape_of(e):   # with ``signature``, its heat kernel signature kept beside the entry
+        def load():
+            s = _entry_shape(store, e, shape_args, tau)
+            if signature:
+                got = store.extra(e.key, heat_name)
+                if got is not None and "h" in got and got["h"].shape[:1] == (s.mesh.n_vertices,):
+                    h = np.asarray(got["h"], dtype=np.float64)
+                    h.flags.writeable = False
+                    s.__dict__.setdefault("_spectrum", {})["heat"] = h
+                else:
+                    store.put_extra(e.key, heat_name, {"h": heat_signature(s)})
+            return s
+        return load
+
+    return ([_Candidate(e.path or e.key, bound_of(e), shape_of(e), spectrum_of(e)) for e in kept], q, recorded)
 
 
 def _entry_shape(store, entry, shape_args, rank_tau_scale) -> ShapeMetric:

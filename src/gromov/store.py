@@ -94,7 +94,8 @@ CREATE TABLE IF NOT EXISTS pairs (
     ranking_distance REAL,
     arrays BLOB NOT NULL,
     seconds REAL,
-    created REAL NOT NULL
+    created REAL NOT NULL,
+    signature_distortion REAL
 );
 CREATE TABLE IF NOT EXISTS extras (
     entry TEXT NOT NULL,
@@ -136,7 +137,9 @@ class StoreEntry:
 class PairRecord:
     """A pair result recorded by :func:`gromov.experiments.gh_matrix` with a store: the
     :class:`gromov.MatchResult` fields of ``match(X, Y, orientation="ignore")``, X and Y the
-    entries ``x`` and ``y``. ``arrays``: the sample correspondences (:data:`PAIR_ARRAYS`)."""
+    entries ``x`` and ``y``. ``arrays``: the sample correspondences (:data:`PAIR_ARRAYS`).
+    ``signature_distortion``: NaN for a pair matched without spectral signatures (or recorded
+    before the store kept it)."""
 
     key: str
     x: str
@@ -151,6 +154,7 @@ class PairRecord:
     arrays: dict
     seconds: float
     created: float
+    signature_distortion: float = float("nan")
 
 
 def _plain(obj):
@@ -358,6 +362,9 @@ class ShapeStore:
                 for statement in _SCHEMA.split(";"):
                     if statement.strip():
                         conn.execute(statement)
+                columns = [row[1] for row in conn.execute("PRAGMA table_info(pairs)")]
+                if "signature_distortion" not in columns:   # a catalogue written before the column
+                    conn.execute("ALTER TABLE pairs ADD COLUMN signature_distortion REAL")
                 conn.execute("INSERT OR IGNORE INTO meta VALUES ('format', ?)", (str(FORMAT),))
                 found = conn.execute("SELECT value FROM meta WHERE name = 'format'").fetchone()[0]
             if found != str(FORMAT):
@@ -394,9 +401,9 @@ class ShapeStore:
         """All recorded pair results, oldest first."""
         rows = self._db().execute("SELECT key, x, y, options, version, distance, relative_distance, "
                                   "distortion_trimmed, relative_trimmed, ranking_distance, arrays, seconds, "
-                                  "created FROM pairs ORDER BY created, key").fetchall()
+                                  "created, signature_distortion FROM pairs ORDER BY created, key").fetchall()
         return [PairRecord(r[0], r[1], r[2], json.loads(r[3]), r[4], *(_float(v) for v in r[5:10]),
-                           _read_npz(r[10]), r[11], r[12]) for r in rows]
+                           _read_npz(r[10]), r[11], r[12], _float(r[13])) for r in rows]
 
     def verify(self) -> list[str]:
         """Check the catalogue (SQLite's integrity check) and every entry against its checksum.
@@ -615,26 +622,28 @@ class ShapeStore:
 
     # ------------------------------------------------------------------ pairs
     def pair_values(self, keys) -> dict:
-        """``{pair key: (distance, relative_distance, ranking_distance)}`` of the given pair
-        keys that are recorded."""
+        """``{pair key: (distance, relative_distance, ranking_distance, signature_distortion)}``
+        of the given pair keys that are recorded (NaN where a value was not)."""
         keys = list(keys)
         out = {}
         db = self._db()
         for i in range(0, len(keys), 500):
             chunk = keys[i:i + 500]
-            q = ("SELECT key, distance, relative_distance, ranking_distance FROM pairs WHERE key IN "
+            q = ("SELECT key, distance, relative_distance, ranking_distance, signature_distortion FROM pairs "
+                 "WHERE key IN "
                  f"({','.join('?' * len(chunk))})")
             for k, *v in db.execute(q, chunk).fetchall():
                 out[k] = tuple(_float(x) for x in v)
         return out
 
     def pair_values_among(self, keys, options: dict) -> dict:
-        """``{(x, y): (distance, relative_distance, ranking_distance)}`` of the recorded pairs
+        """``{(x, y): (distance, relative_distance, ranking_distance, signature_distortion)}`` of
+        the recorded pairs
         between the entries ``keys`` (each pair as it was recorded: X, Y) matched with
         ``options`` (:func:`match_options_key`) by this gromov version."""
         keys = set(keys)
-        rows = self._db().execute("SELECT x, y, distance, relative_distance, ranking_distance FROM pairs "
-                                  "WHERE options = ? AND version = ?", (_dumps(options), __version__))
+        rows = self._db().execute("SELECT x, y, distance, relative_distance, ranking_distance, "
+                                  "signature_distortion FROM pairs WHERE options = ? AND version = ?", (_dumps(options), __version__))
         return {(x, y): tuple(_float(v) for v in vals) for x, y, *vals in rows
                 if x in keys and y in keys}
 
@@ -643,10 +652,13 @@ class ShapeStore:
         blob = _npz_bytes({k: np.asarray(getattr(result, k)) for k in PAIR_ARRAYS})
         db = self._db()
         with self._transaction(db):
-            db.execute("INSERT OR IGNORE INTO pairs VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            db.execute("INSERT OR IGNORE INTO pairs (key, x, y, options, version, distance, relative_distance, "
+                       "distortion_trimmed, relative_trimmed, ranking_distance, arrays, seconds, created, "
+                       "signature_distortion) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                        (key, x, y, _dumps(options), __version__, *(float(getattr(result, k)) for k in (
                            "distance", "relative_distance", "distortion_trimmed", "relative_trimmed",
-                           "ranking_distance")), blob, float(result.seconds), time.time()))
+                           "ranking_distance")), blob, float(result.seconds), time.time(),
+                        float(getattr(result, "signature_distortion", float("nan")))))
 
     # ------------------------------------------------------------------ extra per-entry arrays
     def put_extra(self, key: str, name: str, arrays: dict) -> None:
@@ -680,8 +692,10 @@ def match_options_key(n_samples: int, seed: int, options: dict) -> dict:
     of :func:`gromov.match` that can change its result, with the defaults filled in, and
     ``orientation="ignore"`` (the matrix's estimate)."""
     params = inspect.signature(_match).parameters
-    skip = {"X", "Y", "metric", "resolution", "metric_options", "dense", "as_prepared"}
+    skip = {"X", "Y", "metric", "resolution", "metric_options", "dense", "as_prepared", "signature"}
     out = {k: p.default for k, p in params.items() if k not in skip}
+    # (the signature distortion is a value recorded with the pair, not an option of its match)
+    options = {k: v for k, v in options.items() if k != "signature"}
     unknown = set(options) - set(out)
     if unknown:
         raise TypeError(f"unknown match options: {sorted(unknown)}")

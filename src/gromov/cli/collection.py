@@ -143,8 +143,9 @@ def _search_parser(sub) -> None:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--rank-by", choices=("trimmed", "gh", "combined"), default="trimmed",
                    help="rank by the trimmed distortion of each pair's correspondence (default, as "
-                        "pairwise), by the GH estimate, or by the trimmed distortion and the "
-                        "spectral distance (Shape-DNA) together")
+                        "pairwise), by the GH estimate, or by the trimmed distortion, the spectral "
+                        "distance (Shape-DNA) and the heat kernel signature's distortion together "
+                        "(every candidate matched, unless --candidates)")
     q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
                    help=f"heat-kernel diffusion: the trimmed ranking's heat distance at S times the "
                         f"diffusion time (default {RANK_TAU_SCALE:g}, as pairwise and index)")
@@ -316,7 +317,8 @@ def _pairwise_result(args, r, files: list, unusable: dict, labels, options: dict
               "nearest": [names[j] for j in nearest], "labels": labels,
               "seconds": seconds}
     if r.spectral is not None:
-        result.update(spectral_distance=r.spectral.tolist(), combined_distance=r.combined.tolist())
+        result.update(spectral_distance=r.spectral.tolist(), signature_distortion=r.signature.tolist(),
+                      combined_distance=r.combined.tolist())
     if args.k is not None or args.candidates is not None:
         result.update(k=args.k, candidates=args.candidates, pairs_matched=n * (n - 1) // 2 - r.skipped,
                       pairs_skipped=r.skipped)
@@ -363,6 +365,7 @@ def _write_pairwise(args, r, result: dict, D: np.ndarray) -> None:
         else:
             nan = float("nan")
             extra = {} if r.spectral is None else {"spectral_distance": r.spectral,
+                                                   "signature_distortion": r.signature,
                                                    "combined_distance": r.combined}
             atomic_savez_compressed(out, files=np.array(names), distance=r.distance, **extra,
                                     relative_distance=r.relative, relative_trimmed_distance=r.trimmed,
@@ -571,7 +574,8 @@ def _pairwise_parser(sub) -> None:
     q.add_argument("--rank-by", choices=("trimmed", "gh", "combined"), default="trimmed",
                    help="nearest neighbours, EER and MDS by the trimmed distortion of each pair's "
                         "correspondence (default, as gromov reproduce), by the GH estimate, or by "
-                        "the trimmed distortion and the spectral distance (Shape-DNA) together")
+                        "the trimmed distortion, the spectral distance (Shape-DNA) and the heat "
+                        "kernel signature's distortion together")
     _add_rank_args(q)
     q.add_argument("--diffusion-rerank", type=_positive_int, default=None, metavar="K",
                    help=f"the EER is also reported after a diffusion on the shapes' K-nearest "

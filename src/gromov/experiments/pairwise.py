@@ -68,20 +68,24 @@ class PairwiseGH:
     spectral: np.ndarray | None = None
     """Distances between the shapes' spectral signatures (:func:`gromov.spectrum.spectrum`,
     Shape-DNA of the working meshes); None with a Dask client."""
+    signature: np.ndarray | None = None
+    """Each pair's heat kernel signature distortion along its correspondence
+    (:attr:`gromov.MatchResult.signature_distortion`); None without spectral signatures."""
 
     @property
     def combined(self) -> np.ndarray | None:
-        r"""The combined ranking :math:`S^w\, G^{1-w}` of ``spectral`` and ``trimmed``
-        (:func:`gromov.spectrum.combined`, w = :data:`~gromov.spectrum.SPECTRUM_WEIGHT`);
+        r"""The combined ranking :math:`(S^w\, G^{1-w})^{1-v}\, H^v` of ``spectral``,
+        ``trimmed`` and ``signature`` (:func:`gromov.spectrum.combined`, w =
+        :data:`~gromov.spectrum.SPECTRUM_WEIGHT`, v = :data:`~gromov.spectrum.SIGNATURE_WEIGHT`);
         None without ``spectral``."""
-        return _ranked_values("combined", self.spectral, self.relative, self.trimmed)
+        return _ranked_values("combined", self.spectral, self.relative, self.trimmed, self.signature)
 
     def ranked(self, rank_by: str = "trimmed") -> np.ndarray:
         """The matrix recognition ranks by: ``"trimmed"``, ``"gh"`` (``relative``) or
         ``"combined"``."""
         if rank_by not in RANK_BY:
             raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
-        out = _ranked_values(rank_by, self.spectral, self.relative, self.trimmed)
+        out = _ranked_values(rank_by, self.spectral, self.relative, self.trimmed, self.signature)
         if out is None:
             raise ValueError(f"rank_by={rank_by!r}: this matrix has no {rank_by} values (no spectral "
                              "signatures: not computed with a Dask client)")
@@ -94,11 +98,11 @@ def _pair(ij):
 
 
 def _pair_of(x: ShapeMetric, y: ShapeMetric, ij, options: dict, *, matrix: bool, keep: bool, record=None):
-    """``(distance, relative, trimmed, MatchResult or None)`` of one pair; ``record(ij, result)``
-    is given the matrix's result as soon as it is found."""
+    """``(distance, relative, trimmed, signature distortion, MatchResult or None)`` of one pair;
+    ``record(ij, result)`` is given the matrix's result as soon as it is found."""
     if not matrix:
         r = _match(x, y, x.metric, **options)
-        return r.distance, r.relative_distance, r.relative_trimmed, r
+        return r.distance, r.relative_distance, r.relative_trimmed, r.signature_distortion, r
     # the GH estimate: the lowest distortion found, mirror images included
     options = dict(options)
     orientation = options.pop("orientation", "prefer")
@@ -113,7 +117,7 @@ def _pair_of(x: ShapeMetric, y: ShapeMetric, ij, options: dict, *, matrix: bool,
         # prefer, and "prefer" would give the same map)
         if orientation == "prefer" and np.isfinite(r.orientation):
             full = _match(x, y, x.metric, orientation="prefer", as_prepared=True, **options)
-    return r.distance, r.relative_distance, r.ranking_distance, full
+    return r.distance, r.relative_distance, r.ranking_distance, r.signature_distortion, full
 
 
 def available_cpus() -> int:
@@ -192,7 +196,8 @@ def prepare(shapes, metric: str, *, n_samples: int = 100, seed: int = 0, resolut
     (:meth:`ShapeMetric.ranking_surface <gromov.shape_metric.ShapeMetric.ranking_surface>`).
     ``jobs``: with the diffusion metric, shapes are prepared in that many forked worker
     processes (:data:`PARALLEL_PREPARE`), with the same values as in this one. ``spectral``:
-    also each shape's spectral signature (:func:`gromov.spectrum.spectrum`).
+    also each shape's spectral signatures (:func:`gromov.spectrum.spectrum` and
+    :func:`gromov.spectrum.heat_signature`).
     """
     from tqdm import tqdm
 
@@ -244,9 +249,10 @@ def _prepare_one(s: ShapeMetric, n_samples, seed, subsets, rank_tau_scale, spect
     if rank_tau_scale is not None:
         s.ranking_surface(rank_tau_scale)
     if spectral:
-        from ..spectrum import spectrum
+        from ..spectrum import heat_signature, spectrum
 
         spectrum(s)
+        heat_signature(s)
 
 
 #: The attributes of a :class:`ShapeMetric` that :func:`_prepare_one` fills, carried back from
@@ -312,7 +318,8 @@ def _subsets(match_options: dict) -> list[int]:
 
 
 def _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=False):
-    """``(distance, relative, trimmed, MatchResult or None)`` per pair, in the order of ``pairs``."""
+    """``(distance, relative, trimmed, signature distortion, MatchResult or None)`` per pair, in
+    the order of ``pairs``."""
     global _SHAPES, _OPTIONS, _KEEP, _MATRIX
     from tqdm import tqdm
 
@@ -394,9 +401,11 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         symmetric body rather than its mirror image).
     known : dict, optional
         Pairs computed before with the same shapes, options and order (e.g. the shapes two
-        sets share): ``{(i, j): (distance, relative, trimmed, result)}``, ``result`` the
-        ``MatchResult`` (required for a pair in ``keep``, else may be None). They are not
-        run again.
+        sets share): ``{(i, j): (distance, relative, trimmed, result)}`` or ``(distance,
+        relative, trimmed, signature, result)``, ``result`` the ``MatchResult`` (required for
+        a pair in ``keep``, else may be None), ``signature`` its signature distortion (NaN when
+        not given; with ``spectral``, a pair without it is run again). Others are not run
+        again.
     rank_tau_scale : float or None, default RANK_TAU_SCALE (0.5)
         With the heat-kernel diffusion metric, ``trimmed`` measures each correspondence with
         the heat distance at this times the diffusion time (its
@@ -441,8 +450,10 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         measured (docs/design/recognition.md, "Neighbour descent"). Not with ``client``.
     spectral : bool, default False
         Also the distances between the shapes' spectral signatures (``PairwiseGH.spectral``,
-        :func:`gromov.spectrum.spectral_distances`: one sparse eigendecomposition per shape),
-        which the ``combined`` ranking needs; always with ``candidates``. Not with ``client``.
+        :func:`gromov.spectrum.spectral_distances`) and each pair's heat kernel signature
+        distortion (``PairwiseGH.signature``, :func:`gromov.spectrum.signature_distortion`):
+        two sparse eigendecompositions per shape, which the ``combined`` ranking needs;
+        always with ``candidates``. Not with ``client``.
     rank_by : {"trimmed", "gh", "combined"}, default "trimmed"
         The ranking the neighbour descent (``candidates`` and ``k``) follows
         (:meth:`PairwiseGH.ranked`).
@@ -486,31 +497,35 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     bad = [ij for ij in keep if not 0 <= ij[0] < ij[1] < n]
     if bad:
         raise ValueError(f"keep needs pairs (i, j) with 0 <= i < j < {n}, got {sorted(bad)[:3]}")
-    known = {(int(i), int(j)): v for (i, j), v in (known or {}).items()}
+    known = {(int(i), int(j)): _five(v) for (i, j), v in (known or {}).items()}
     bad = [ij for ij in known if not 0 <= ij[0] < ij[1] < n]
     if bad:
         raise ValueError(f"known needs pairs (i, j) with 0 <= i < j < {n}, got {sorted(bad)[:3]}")
-    missing = [ij for ij in keep if ij in known and known[ij][3] is None]
+    if spectral:   # the combined ranking needs each pair's signature distortion
+        known = {ij: v for ij, v in known.items() if np.isfinite(v[3])}
+    missing = [ij for ij in keep if ij in known and known[ij][4] is None]
     if missing:
         raise ValueError(f"known pairs in keep need their MatchResult, missing for {sorted(missing)[:3]}")
     options = dict(n_samples=n_samples, seed=seed, rank_tau_scale=rank_tau_scale,
-                   rank_residual=rank_residual, **match_options)
+                   rank_residual=rank_residual, signature=bool(spectral), **match_options)
     per_shape = {"n_samples": n_samples, "seed": seed, "resolution": resolution, "metric_options": metric_options,
                  "subsets": _subsets(match_options), "rank_tau_scale": rank_tau_scale}
     fill = 0.0 if k is None and candidates is None else np.nan   # NaN where a pair was not matched
     dist = np.full((n, n), fill)
     rel = np.full((n, n), fill)
     trim = np.full((n, n), fill)
-    for a in (dist, rel, trim):
+    sig = np.full((n, n), fill if spectral else np.nan)
+    for a in (dist, rel, trim, sig):
         np.fill_diagonal(a, 0.0)
     kept = {}
     skipped = 0
 
-    def put(ij, value):   # one pair's (distance, relative, trimmed, MatchResult or None)
-        (i, j), (d, r, t, full) = ij, value
+    def put(ij, value):   # one pair's (distance, relative, trimmed, signature, MatchResult or None)
+        (i, j), (d, r, t, h, full) = ij, value
         dist[i, j] = dist[j, i] = d
         rel[i, j] = rel[j, i] = r
         trim[i, j] = trim[j, i] = t
+        sig[i, j] = sig[j, i] = h
         if full is not None and (i, j) in keep:
             kept[i, j] = full
 
@@ -564,13 +579,13 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
                         for i, j in first:
                             searched[i, j] = searched[j, i] = True
                         skipped -= _descent_runs(prepared, k, searched, done, lambda: _ranked_values(
-                            rank_by, S, rel, trim), keep, jobs, progress, desc, options, put)
+                            rank_by, S, rel, trim, sig), keep, jobs, progress, desc, options, put)
                         pairs, runs = [], []   # every pair put already
                 elif k is None:
                     runs = _run(prepared, pairs, keep, jobs, progress, desc, options, matrix=True)
                 else:   # only the pairs that can be among some shape's k nearest
-                    got, skipped = _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress,
-                                             desc, options, match_options)
+                    got, skipped = _knn_runs(prepared, k, pairs, done, (dist, rel, trim, sig), keep, jobs,
+                                             progress, desc, options, match_options)
                     pairs = [ij for ij in got if not done[ij]]
                     runs = [got[ij] for ij in pairs]
             finally:
@@ -583,7 +598,19 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
         if held is not None:
             client.cancel(held)   # the workers drop the shapes
     return PairwiseGH(dist, rel, metric, n_samples, t1 - t0, time.perf_counter() - t1, kept, trim,
-                      rank_tau_scale, rank_residual, skipped, S)
+                      rank_tau_scale, rank_residual, skipped, S, sig if spectral else None)
+
+
+def _five(value) -> tuple:
+    """A known pair's ``(distance, relative, trimmed, signature, result)`` from 4 values (no
+    signature distortion: NaN) or 5."""
+    value = tuple(value)
+    if len(value) == 4:
+        return (*value[:3], float("nan"), value[3])
+    if len(value) != 5:
+        raise ValueError(f"a known pair needs 4 or 5 values (distance, relative, trimmed, [signature,] "
+                         f"result), got {len(value)}")
+    return value
 
 
 def _candidate_pairs(S: np.ndarray, c: int) -> set:
@@ -604,7 +631,7 @@ def _candidate_pairs(S: np.ndarray, c: int) -> set:
 DESCENT = 1.5
 
 
-def _ranked_values(rank_by: str, S, rel, trim) -> np.ndarray | None:
+def _ranked_values(rank_by: str, S, rel, trim, sig=None) -> np.ndarray | None:
     """The matrix ranked by ``rank_by`` (:meth:`PairwiseGH.ranked`; the neighbour descent's),
     NaN where a pair is not matched; None for ``"combined"`` without ``S`` or ``trim``."""
     if rank_by == "combined":
@@ -612,7 +639,7 @@ def _ranked_values(rank_by: str, S, rel, trim) -> np.ndarray | None:
             return None
         from ..spectrum import combined
 
-        return combined(S, trim)
+        return combined(S, trim, signature=sig)
     return rel if rank_by == "gh" else trim
 
 
@@ -661,15 +688,16 @@ def _descent_runs(prepared, k, searched, done, ranked, keep, jobs, progress, des
         matched += len(todo)
 
 
-def _knn_runs(prepared, k, pairs, done, dist, rel, trim, keep, jobs, progress, desc, options, match_options):
+def _knn_runs(prepared, k, pairs, done, matrices, keep, jobs, progress, desc, options, match_options):
     """``({(i, j): worker result}, skipped)``: :func:`gromov.retrieval.knn_pairs` over the
-    prepared shapes, the pairs ``done`` already given as known, the others run by :func:`_run`
-    ``2 * jobs`` at a time."""
+    prepared shapes, the pairs ``done`` already given as known (their values in ``matrices``:
+    distance, relative, trimmed, signature), the others run by :func:`_run` ``2 * jobs`` at a
+    time."""
     from tqdm import tqdm
 
     from ..retrieval import knn_pairs
 
-    known = {(int(i), int(j)): (dist[i, j], rel[i, j], trim[i, j], None) for i, j in zip(*np.nonzero(np.triu(done, 1)))}
+    known = {(int(i), int(j)): (*(m[i, j] for m in matrices), None) for i, j in zip(*np.nonzero(np.triu(done, 1)))}
     # the bar counts the pairs matched against all that could be; the skipped ones close it
     with tqdm(total=len(pairs), desc=f"{desc} (k = {k})", disable=not progress, leave=False) as bar:
         def run(batch):
@@ -697,6 +725,7 @@ def _stored_pairs(store, keys: list[str], done: np.ndarray, keep: frozenset, opt
 
     rest = {k: v for k, v in options.items() if k not in ("n_samples", "seed", "orientation")}
     key_options = match_options_key(options["n_samples"], options["seed"], rest)
+    need_signature = bool(options.get("signature"))
     n = len(keys)
 
     def pair_key(i, j):
@@ -707,7 +736,8 @@ def _stored_pairs(store, keys: list[str], done: np.ndarray, keep: frozenset, opt
         chunk_keys = {ij: pair_key(*ij) for ij in chunk}
         found = store.pair_values(chunk_keys.values())
         for ij, k in chunk_keys.items():
-            if k in found and ij not in keep:
+            # (a pair recorded without its signature distortion is run again where it is needed)
+            if k in found and ij not in keep and not (need_signature and np.isnan(found[k][3])):
                 put(ij, (*found[k], None))
                 done[ij] = True
                 store.pairs_reused += 1
@@ -860,18 +890,18 @@ def _dask_pair(x, y, ij, options: dict, keep: bool, record: bool):
 
     _dask.one_thread()
     found = []
-    d, rel, t, full = _pair_of(x[0], y[0], ij, options, matrix=True, keep=keep,
-                               record=(lambda _, r: found.append(r)) if record else None)
+    d, rel, t, h, full = _pair_of(x[0], y[0], ij, options, matrix=True, keep=keep,
+                                  record=(lambda _, r: found.append(r)) if record else None)
     light = None
     if found:
         light = dataclasses.replace(found[0], pair_distortion=np.zeros((0, 0)), history=np.zeros(0))
-    return d, rel, t, full, light
+    return d, rel, t, h, full, light
 
 
 def _dask_pairs(client, held: list, pairs: list, keep: frozenset, options: dict, record, progress: bool,
                 desc: str, put) -> None:
     """:func:`_run` on the Dask workers, each pair where its shapes are (:func:`gromov._dask.plan`):
-    ``put(ij, (distance, relative, trimmed, MatchResult or None))`` as each finishes."""
+    ``put(ij, (distance, relative, trimmed, signature, MatchResult or None))`` as each finishes."""
     import uuid
 
     from tqdm import tqdm
@@ -893,10 +923,10 @@ def _dask_pairs(client, held: list, pairs: list, keep: frozenset, options: dict,
 
     with tqdm(total=len(pairs), desc=desc, disable=not progress, leave=False) as bar:
         def done(ij, fut):
-            d, rel, t, full, light = fut.result()
+            d, rel, t, h, full, light = fut.result()
             if record is not None:
                 record(ij, light)
-            put(ij, (d, rel, t, full))
+            put(ij, (d, rel, t, h, full))
             bar.update(1)
 
         _dask.run_pinned(client, _dask.plan(pairs, homes, len(addresses)), addresses, submit, done)
