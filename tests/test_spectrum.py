@@ -1,6 +1,7 @@
 """The spectral signature (Shape-DNA), the combined ranking and the two-stage matrix."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -11,7 +12,8 @@ from gromov.cli import main
 from gromov.experiments.pairwise import gh_matrix
 from gromov.mesh import Mesh
 from gromov.shapes import grid, icosphere, rolled_grid, torus
-from gromov.spectrum import combined, shape_dna, spectral_distances, spectrum
+from gromov.spectrum import (SIGNATURE_TAUS, combined, heat_signature, shape_dna, signature_distortion,
+                             spectral_distances, spectrum)
 
 
 def test_the_sphere_spectrum_over_weyl():
@@ -61,6 +63,75 @@ def test_combined_is_a_weighted_geometric_mean_pair_by_pair():
     np.testing.assert_array_equal(combined(S, G, 0.0)[off], G[off])
     with pytest.raises(ValueError, match="weight"):
         combined(S, G, 1.5)
+
+
+def test_heat_signature_of_the_sphere_and_its_invariances():
+    # unit sphere: k_t(x, x) = sum_l (2l + 1) e^{-l(l+1) t} / (4 pi) at every point (Sun et al.
+    # 2009; the addition theorem of spherical harmonics), here truncated at the eigenpairs kept
+    sphere = ShapeMetric(icosphere(4), "euclidean", resolution=None)
+    h = heat_signature(sphere)
+    area = sphere.mesh.area
+    ell = np.arange(12)   # 144 eigenpairs: l = 0..11 (the 150 kept reach no further than l = 12)
+    t = SIGNATURE_TAUS * area
+    exact = np.log(area * ((2 * ell + 1)[:, None] * np.exp(-np.outer(ell * (ell + 1), t))).sum(0) / area)
+    assert h.shape == (sphere.mesh.n_vertices, len(SIGNATURE_TAUS)) and not h.flags.writeable
+    np.testing.assert_allclose(np.median(h, axis=0), exact, atol=0.03)
+    assert np.ptp(h, axis=0).max() < 0.05   # the same at every point
+    # scaling, a rotation and the vertex order change nothing, vertex by vertex (a torus bent out
+    # of its symmetries: no eigenspace of several dimensions for the truncation to cut through)
+    t0 = torus(40, 20)
+    x, y, z = t0.vertices.T
+    m = Mesh(np.c_[x * (1.0 + 0.2 * y), 0.7 * y + 0.1 * x**2, z * (1.0 + 0.1 * x)], t0.faces)
+    rng = np.random.default_rng(2)
+    perm = rng.permutation(m.n_vertices)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    moved = Mesh(0.3 * m.vertices[perm] @ q.T - 2.0, np.argsort(perm)[m.faces])
+    a = heat_signature(ShapeMetric(m, "euclidean", resolution=None))
+    b = heat_signature(ShapeMetric(moved, "euclidean", resolution=None))
+    np.testing.assert_allclose(b, a[perm], atol=1e-6)
+    assert np.ptp(a, axis=0).min() > 0.05   # while it tells its points apart
+
+
+def test_signature_distortion_is_the_trimmed_rms_of_each_pair_rms():
+    x = np.zeros((10, 2))
+    y = np.repeat(np.arange(10.0)[:, None], 2, axis=1)   # pair i differs by i at both times
+    y[3] = [3.0, -5.0]                                   # RMS over the times: sqrt(17)
+    r = np.sort(np.r_[np.arange(10.0)[[0, 1, 2]], np.sqrt(17.0), np.arange(4.0, 10.0)])
+    assert signature_distortion(x, y) == pytest.approx(np.sqrt(np.mean(r[:8] ** 2)), rel=1e-12)
+    assert signature_distortion(x, y, keep=1.0) == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-12)
+    assert signature_distortion(y, y) == 0.0
+    with pytest.raises(ValueError, match="one shape"):
+        signature_distortion(x, y[:5])
+
+
+def test_combined_with_the_signature_distortion():
+    S = np.array([[0.0, 4.0], [4.0, 0.0]])
+    G = np.array([[0.0, 0.25], [0.25, 0.0]])
+    H = np.array([[0.0, 9.0], [9.0, 0.0]])
+    C = combined(S, G, 0.5, signature=H, signature_weight=0.5)
+    assert C[0, 1] == pytest.approx(3.0) and C[0, 0] == 0.0    # (4^0.5 0.25^0.5)^0.5 9^0.5
+    assert combined(S, G, 0.5, signature=H, signature_weight=0.0)[0, 1] == pytest.approx(1.0)
+    assert np.isnan(combined(S, G, signature=np.array([[0.0, np.nan], [np.nan, 0.0]]))[0, 1])
+    with pytest.raises(ValueError, match="signature_weight"):
+        combined(S, G, signature=H, signature_weight=-0.1)
+
+
+def test_the_signature_distortion_of_a_shape_against_its_moved_copy_is_near_zero():
+    from gromov.gh import _match
+
+    t0 = torus(40, 20)
+    x, y, z = t0.vertices.T
+    m = Mesh(np.c_[x * (1.0 + 0.2 * y), 0.7 * y + 0.1 * x**2, z * (1.0 + 0.1 * x)], t0.faces)
+    rng = np.random.default_rng(0)
+    perm = rng.permutation(m.n_vertices)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    moved = Mesh(2.0 * m.vertices[perm] @ q.T, np.argsort(perm)[m.faces])
+    opts = dict(n_samples=15, resolution=None, orientation="ignore")
+    same = _match(m, moved, "diffusion", signature=True, **opts)
+    other = _match(m, Mesh(m.vertices * [1.8, 1.0, 0.6], m.faces), "diffusion", signature=True, **opts)
+    assert 0.0 <= same.signature_distortion < 1e-6 and other.signature_distortion > 0.05
+    plain = _match(m, moved, "diffusion", **opts)
+    assert np.isnan(plain.signature_distortion) and plain.distance == same.distance
 
 
 def _sheets():
@@ -131,8 +202,10 @@ def test_nearest_ranks_by_the_combined_distance_and_searches_in_two_stages():
         assert nb.distance == pytest.approx(full.combined[0, nb.index + 1], rel=1e-12)
     assert [nb.distance for nb in r.neighbors] == sorted(nb.distance for nb in r.neighbors)
     # exact pruning stays exact: the same neighbours as matching every candidate
+    # (the signature distortion has no lower bound: nothing is pruned, the result is exact)
     b = nearest(shapes[0], shapes[1:], k=2, metric="geodesic", n_samples=15, rank_by="combined", prune="bound")
     assert [nb.index for nb in b.neighbors] == [nb.index for nb in r.neighbors[:2]]
+    assert b.full_matches == 4 and b.exact
     two = nearest(shapes[0], shapes[1:], k=1, metric="geodesic", n_samples=15, candidates=2)
     first = np.argsort(full.spectral[0, 1:], kind="stable")[:2]
     assert two.full_matches == 2 and two.skipped == 2 and not two.exact
@@ -160,7 +233,26 @@ def test_search_a_store_in_two_stages(tmp_path, capsys):
     # and no candidate's bound invariants: the first stage needs only the signatures
     assert not any(st.extra(e.key, name) is not None for e in st.entries()
                    for name in ("retrieval-bound-1:n_samples=15:seed=0",))
-    assert main(argv) == 0
+    # the heat kernel signatures of the query and of the candidates matched, kept too
+    from gromov.retrieval import HEAT_SIGNATURE_NAME
+    from gromov.spectrum import SIGNATURE_EIGENPAIRS
+
+    heat = {e.path: st.extra(e.key, f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}") for e in st.entries()}
+    assert sum(h is not None for h in heat.values()) == 3 and heat[os.path.abspath(files[0])] is not None
+    st.close()
+    import gromov.spectrum as spectrum_module
+
+    real = spectrum_module._eigenpairs
+    def eigenpairs(shape, k, what):   # (the query's Shape-DNA is computed: it is not kept)
+        if k == SIGNATURE_EIGENPAIRS:
+            pytest.fail("a kept heat kernel signature was computed again")
+        return real(shape, k, what)
+
+    spectrum_module._eigenpairs = eigenpairs
+    try:
+        assert main(argv) == 0
+    finally:
+        spectrum_module._eigenpairs = real
     assert json.loads(capsys.readouterr().out)["neighbors"] == res["neighbors"]
 
 

@@ -532,3 +532,43 @@ def test_damaged_ground_truth_rows_are_reported_and_computed_again(tmp_path, cap
     np.testing.assert_array_equal(again.from_sources([3, 50, 7]), want)
     _save_rows(store, again)
     assert _stored_rows(store, mesh, metric_solver(mesh, "geodesic")).n_stored == 3
+
+
+def test_an_older_catalogue_gains_the_signature_column_and_its_pairs_are_rerun_only_where_needed(
+        tmp_path, sheet_files, monkeypatch):
+    files = sheet_files[:3]
+    opts = {"n_samples": 20, "resolution": None}
+    plain = gh_matrix(files, "geodesic", jobs=1, store=tmp_path, **opts)
+    assert plain.signature is None
+    assert all(np.isnan(r.signature_distortion) for r in ShapeStore(tmp_path).pairs())
+    # a catalogue written before the column existed
+    conn = sqlite3.connect(tmp_path / "catalogue.sqlite")
+    conn.execute("ALTER TABLE pairs DROP COLUMN signature_distortion")
+    conn.commit()
+    conn.close()
+    calls = []
+    real = pairwise._match
+
+    def counted(x, y, *a, **k):
+        calls.append(k.get("signature"))
+        return real(x, y, *a, **k)
+
+    monkeypatch.setattr(pairwise, "_match", counted)
+    store = ShapeStore(tmp_path)
+    again = gh_matrix(files, "geodesic", jobs=1, store=store, **opts)   # nothing to rerun
+    assert calls == [] and store.pairs_reused == 3
+    np.testing.assert_array_equal(again.trimmed, plain.trimmed)
+    # the combined ranking needs each pair's signature distortion: the pairs run again, once
+    store = ShapeStore(tmp_path)
+    spec = gh_matrix(files, "geodesic", jobs=1, store=store, spectral=True, **opts)
+    assert calls == [True] * 3 and store.pairs_reused == 0
+    np.testing.assert_array_equal(spec.trimmed, plain.trimmed)
+    off = ~np.eye(3, dtype=bool)
+    assert np.all(np.isfinite(spec.signature)) and np.all(spec.signature[off] > 0)
+    records = ShapeStore(tmp_path).pairs()
+    assert len(records) == 3 and all(np.isfinite(r.signature_distortion) for r in records)
+    store = ShapeStore(tmp_path)
+    last = gh_matrix(files, "geodesic", jobs=1, store=store, spectral=True, **opts)
+    assert len(calls) == 3 and store.pairs_reused == 3
+    np.testing.assert_array_equal(last.signature, spec.signature)
+    np.testing.assert_array_equal(last.combined, spec.combined)

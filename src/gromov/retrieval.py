@@ -1005,25 +1005,32 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
         found = store.pair_values_among(at, match_options_key(options["n_samples"], options["seed"], rest))
         return {(at[x], at[y]): v for (x, y), v in found.items()}
 
-    from .spectrum import SIGNATURE_EIGENPAIRS, heat_signature
-
-    heat_name = f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}"
-
-    def shape_of(e):   # with ``signature``, its heat kernel signature kept beside the entry
+    def shape_of(e):
         def load():
             s = _entry_shape(store, e, shape_args, tau)
             if signature:
-                got = store.extra(e.key, heat_name)
-                if got is not None and "h" in got and got["h"].shape[:1] == (s.mesh.n_vertices,):
-                    h = np.asarray(got["h"], dtype=np.float64)
-                    h.flags.writeable = False
-                    s.__dict__.setdefault("_spectrum", {})["heat"] = h
-                else:
-                    store.put_extra(e.key, heat_name, {"h": heat_signature(s)})
+                _kept_heat_signature(store, e.key, s)
             return s
         return load
 
+    if signature and query_key in by_key:
+        _kept_heat_signature(store, query_key, q)
     return ([_Candidate(e.path or e.key, bound_of(e), shape_of(e), spectrum_of(e)) for e in kept], q, recorded)
+
+
+def _kept_heat_signature(store, key: str, s: ShapeMetric) -> None:
+    """The heat kernel signature of the entry ``key`` (:func:`gromov.spectrum.heat_signature`)
+    read from beside it into the prepared shape ``s``, or computed and kept there."""
+    from .spectrum import SIGNATURE_EIGENPAIRS, heat_signature
+
+    name = f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}"
+    got = store.extra(key, name)
+    if got is not None and "h" in got and got["h"].shape[:1] == (s.mesh.n_vertices,):
+        h = np.asarray(got["h"], dtype=np.float64)
+        h.flags.writeable = False
+        s.__dict__.setdefault("_spectrum", {})["heat"] = h
+    else:
+        store.put_extra(key, name, {"h": heat_signature(s)})
 
 
 def _entry_shape(store, entry, shape_args, rank_tau_scale) -> ShapeMetric:

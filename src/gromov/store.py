@@ -648,13 +648,16 @@ class ShapeStore:
                 if x in keys and y in keys}
 
     def record_pair(self, key: str, x: str, y: str, options: dict, result) -> None:
-        """Record a :class:`gromov.MatchResult` under ``key`` (kept if already there)."""
+        """Record a :class:`gromov.MatchResult` under ``key`` (kept if already there; a pair
+        recorded without its signature distortion is given the result's)."""
         blob = _npz_bytes({k: np.asarray(getattr(result, k)) for k in PAIR_ARRAYS})
         db = self._db()
         with self._transaction(db):
-            db.execute("INSERT OR IGNORE INTO pairs (key, x, y, options, version, distance, relative_distance, "
+            db.execute("INSERT INTO pairs (key, x, y, options, version, distance, relative_distance, "
                        "distortion_trimmed, relative_trimmed, ranking_distance, arrays, seconds, created, "
-                       "signature_distortion) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                       "signature_distortion) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
+                       "ON CONFLICT (key) DO UPDATE SET signature_distortion = excluded.signature_distortion "
+                       "WHERE pairs.signature_distortion IS NULL",
                        (key, x, y, _dumps(options), __version__, *(float(getattr(result, k)) for k in (
                            "distance", "relative_distance", "distortion_trimmed", "relative_trimmed",
                            "ranking_distance")), blob, float(result.seconds), time.time(),
