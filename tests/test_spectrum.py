@@ -429,3 +429,16 @@ def test_search_says_whether_it_descended(tmp_path, capsys):
     capsys.readouterr()
     assert main(search) == 0
     assert "then neighbour descent over" in capsys.readouterr().out
+
+
+def test_point_clouds_have_a_signature_distortion_too():
+    from gromov.mesh import PointCloud
+
+    v = icosphere(3).vertices
+    rng = np.random.default_rng(3)
+    perm = rng.permutation(len(v))
+    clouds = [PointCloud(v), PointCloud(2.0 * v[perm]), PointCloud(v * [1.0, 1.0, 2.5])]
+    g = gh_matrix(clouds, "diffusion", n_samples=15, resolution=None, metric_options={"units": "area"},
+                  spectral=True, jobs=1)
+    assert g.signature[0, 1] < 0.2 * g.signature[0, 2] and g.signature[0, 1] == g.signature[1, 0]
+    np.testing.assert_allclose(g.combined, combined(g.spectral, g.trimmed, signature=g.signature))
