@@ -29,12 +29,25 @@ def test_the_sphere_spectrum_over_weyl():
     np.testing.assert_allclose(spectrum(cloud, 8), exact, rtol=0.02)
 
 
-def test_the_signature_ignores_scale_rotation_and_vertex_order():
-    m = torus(40, 20)
-    rng = np.random.default_rng(1)
+def _moved(m: Mesh, seed: int, scale: float, shift: float = 0.0) -> tuple[Mesh, np.ndarray]:
+    """``(copy, perm)``: ``m`` scaled, rotated, shifted and with its vertices in another order
+    (copy vertex i is vertex ``perm[i]`` of ``m``)."""
+    rng = np.random.default_rng(seed)
     perm = rng.permutation(m.n_vertices)
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    moved = Mesh(3.0 * m.vertices[perm] @ q.T + 5.0, np.argsort(perm)[m.faces])
+    return Mesh(scale * m.vertices[perm] @ q.T + shift, np.argsort(perm)[m.faces]), perm
+
+
+def _bent_torus() -> Mesh:
+    """A torus bent out of its symmetries (no eigenspace of several dimensions)."""
+    t0 = torus(40, 20)
+    x, y, z = t0.vertices.T
+    return Mesh(np.c_[x * (1.0 + 0.2 * y), 0.7 * y + 0.1 * x**2, z * (1.0 + 0.1 * x)], t0.faces)
+
+
+def test_the_signature_ignores_scale_rotation_and_vertex_order():
+    m = torus(40, 20)
+    moved, _ = _moved(m, 1, 3.0, 5.0)
     a = spectrum(ShapeMetric(m, "diffusion", resolution=None))
     b = spectrum(ShapeMetric(moved, "diffusion", resolution=None))
     np.testing.assert_allclose(b, a, rtol=1e-6)
@@ -77,15 +90,10 @@ def test_heat_signature_of_the_sphere_and_its_invariances():
     assert h.shape == (sphere.mesh.n_vertices, len(SIGNATURE_TAUS)) and not h.flags.writeable
     np.testing.assert_allclose(np.median(h, axis=0), exact, atol=0.03)
     assert np.ptp(h, axis=0).max() < 0.05   # the same at every point
-    # scaling, a rotation and the vertex order change nothing, vertex by vertex (a torus bent out
-    # of its symmetries: no eigenspace of several dimensions for the truncation to cut through)
-    t0 = torus(40, 20)
-    x, y, z = t0.vertices.T
-    m = Mesh(np.c_[x * (1.0 + 0.2 * y), 0.7 * y + 0.1 * x**2, z * (1.0 + 0.1 * x)], t0.faces)
-    rng = np.random.default_rng(2)
-    perm = rng.permutation(m.n_vertices)
-    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    moved = Mesh(0.3 * m.vertices[perm] @ q.T - 2.0, np.argsort(perm)[m.faces])
+    # scaling, a rotation and the vertex order change nothing, vertex by vertex (on a shape
+    # without symmetries: no eigenspace of several dimensions for the truncation to cut through)
+    m = _bent_torus()
+    moved, perm = _moved(m, 2, 0.3, -2.0)
     a = heat_signature(ShapeMetric(m, "euclidean", resolution=None))
     b = heat_signature(ShapeMetric(moved, "euclidean", resolution=None))
     np.testing.assert_allclose(b, a[perm], atol=1e-6)
@@ -119,13 +127,8 @@ def test_combined_with_the_signature_distortion():
 def test_the_signature_distortion_of_a_shape_against_its_moved_copy_is_near_zero():
     from gromov.gh import _match
 
-    t0 = torus(40, 20)
-    x, y, z = t0.vertices.T
-    m = Mesh(np.c_[x * (1.0 + 0.2 * y), 0.7 * y + 0.1 * x**2, z * (1.0 + 0.1 * x)], t0.faces)
-    rng = np.random.default_rng(0)
-    perm = rng.permutation(m.n_vertices)
-    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    moved = Mesh(2.0 * m.vertices[perm] @ q.T, np.argsort(perm)[m.faces])
+    m = _bent_torus()
+    moved, _ = _moved(m, 0, 2.0)
     opts = dict(n_samples=15, resolution=None, orientation="ignore")
     same = _match(m, moved, "diffusion", signature=True, **opts)
     other = _match(m, Mesh(m.vertices * [1.8, 1.0, 0.6], m.faces), "diffusion", signature=True, **opts)
