@@ -281,3 +281,19 @@ def test_pairwise_with_one_usable_shape_names_the_others(tmp_path, capsys):
     assert main(["pairwise", files[0], bad, "--metric", "geodesic", "--samples", "20", "--jobs", "1"]) == 2
     err = capsys.readouterr().err
     assert "at least two usable shapes; 1 of 2 can be used" in err and bad in err and "Traceback" not in err
+
+
+def test_known_pairs_take_four_or_five_values():
+    shapes = [grid(8, 8), grid(9, 8)]
+    with pytest.raises(ValueError, match="4 or 5 values"):
+        gh_matrix(shapes, "geodesic", n_samples=10, resolution=None, known={(0, 1): (1.0, 0.1, 0.1)})
+    four = gh_matrix(shapes, "geodesic", n_samples=10, resolution=None, known={(0, 1): (1.0, 0.1, 0.2, None)})
+    assert (four.distance[0, 1], four.relative[1, 0], four.trimmed[0, 1]) == (1.0, 0.1, 0.2)
+    assert four.signature is None
+    # a known pair without its signature distortion is matched again where the combined ranking needs it
+    five = gh_matrix(shapes, "geodesic", n_samples=10, resolution=None, spectral=True,
+                     known={(0, 1): (1.0, 0.1, 0.2, float("nan"), None)})
+    assert five.distance[0, 1] != 1.0 and np.isfinite(five.signature[0, 1])
+    kept = gh_matrix(shapes, "geodesic", n_samples=10, resolution=None, spectral=True,
+                     known={(0, 1): (1.0, 0.1, 0.2, 0.3, None)})
+    assert kept.distance[0, 1] == 1.0 and kept.signature[0, 1] == 0.3
