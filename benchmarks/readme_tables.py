@@ -518,8 +518,8 @@ def benchmark_tables() -> list[tuple[str, str]]:
             ("collection_resume.json", collection_runs(load("collection_resume.json"))),
             ("collection_dask.json", dask_table(load("collection_dask.json"))),
             ("recognition_full.json", recognition_table(load("recognition_full.json"))),
-            ("recognition_two_stage.json", two_stage_table(
-                json.loads((HERE.parent / "studies" / "recognition_two_stage.json").read_text())))]
+            ("recognition_two_stage_signature.json", two_stage_table(
+                json.loads((HERE.parent / "studies" / "recognition_two_stage_signature.json").read_text())))]
 
 
 def main(argv=None) -> None:

@@ -307,7 +307,7 @@ def test_benchmark_page_tables_are_the_results_files():
     ours = next(v for k, v in wt["rows"].items() if k.startswith("gromov --units area") and "(" not in k)
     assert ours["pairs_matched"] == 200 * 199 // 2 and wt["shapes"] == 200
     assert f"| {100 * ours['nn']:.1f}% | {100 * ours['ft']:.1f}% | {100 * ours['st']:.1f}% | {100 * ours['eer']:.1f}% |" in recognition
-    study = _json("../studies/recognition_two_stage.json")
+    study = _json("../studies/recognition_two_stage_signature.json")
     c40 = next(x for x in study["two_stage"] if x["candidates"] == 40)
     assert f"| 40 | {c40['pairs']:,} | {100 * c40['top_equal_list']:.1f}% |" in two_stage
 
