@@ -208,7 +208,9 @@ def test_nearest_ranks_by_the_combined_distance_and_searches_in_two_stages():
     # (the signature distortion has no lower bound: nothing is pruned, the result is exact)
     b = nearest(shapes[0], shapes[1:], k=2, metric="geodesic", n_samples=15, rank_by="combined", prune="bound")
     assert [nb.index for nb in b.neighbors] == [nb.index for nb in r.neighbors[:2]]
-    assert b.full_matches == 4 and b.exact
+    assert b.full_matches == 4 and b.exact and np.isnan(b.bounds).all()
+    p = nearest(shapes[0], shapes[1:], k=2, metric="geodesic", n_samples=15, rank_by="combined")
+    assert p.full_matches == 4 and p.exact and [nb.index for nb in p.neighbors] == [nb.index for nb in b.neighbors]
     two = nearest(shapes[0], shapes[1:], k=1, metric="geodesic", n_samples=15, candidates=2)
     first = np.argsort(full.spectral[0, 1:], kind="stable")[:2]
     assert two.full_matches == 2 and two.skipped == 2 and not two.exact

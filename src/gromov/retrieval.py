@@ -455,7 +455,7 @@ class NearestResult:
         value found.
     bounds, gaps : ndarray (m,)
         Each candidate's lower bound (:func:`pair_bound`) and profile gap (:func:`profile_gap`);
-        NaN in a two-stage search (``candidates``), which computes neither.
+        NaN in a two-stage search (``candidates``) and with ``rank_by="combined"``, which compute neither.
     values : dict
         ``{candidate index: ranked value}`` of the candidates matched.
     exact : bool
@@ -635,21 +635,23 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         for (i, j), v in known.items():
             triangle.add(i, j, v, estimates=False)
     n_known = 0 if triangle is None else sum(len(v) for v in triangle.known.values()) // 2
-    qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
-    kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
-    cbs = [c.bound() for c in candidates]
-    bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
-    gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
     from tqdm import tqdm
 
     spectral = weight = None
-    keys, ties = _keys(bounds, gaps, prune, slack), gaps
     if combine:   # no lower bound (the signature distortion has none): all matched, nearest S first
         from .spectrum import SPECTRUM_WEIGHT
 
         spectral = _spectral_to(query_shape, candidates)
         weight = SPECTRUM_WEIGHT
+        bounds = gaps = np.full(len(candidates), np.nan)
         keys, ties = np.zeros(len(candidates)), spectral
+    else:
+        qb = shape_bound(query_shape, n_samples, seed, rank_tau_scale)
+        kw = {"rank_by": rank_by, "rank_residual": rank_residual, "norm": match_options.get("norm", "l2")}
+        cbs = [c.bound() for c in candidates]
+        bounds = np.array([pair_bound(qb, b, **kw) for b in cbs])
+        gaps = np.array([profile_gap(qb, b, **kw) for b in cbs])
+        keys, ties = _keys(bounds, gaps, prune, slack), gaps
     todo = np.arange(len(candidates))
     bar = tqdm(total=len(todo), desc="nearest", disable=not progress, leave=False)
 
@@ -670,7 +672,8 @@ def nearest(query, shapes, k: int = 5, metric: str = "diffusion", *, n_samples: 
         bar.close()
     neighbors = [Neighbor(j, candidates[j].name, v) for v, j in rows.best[0]]
     return NearestResult(neighbors, n_run, n_skipped, bounds, gaps, {j: v for (_, j), v in values.items()},
-                         prune == "bound" or prune == "none", "combined" if combine else rank_by, n_known)
+                         combine or prune == "bound" or prune == "none", "combined" if combine else rank_by,
+                         n_known)
 
 
 def _spectral_to(query_shape, candidates) -> np.ndarray:
