@@ -239,10 +239,11 @@ def test_search_a_store_in_two_stages(tmp_path, capsys):
     assert not any(st.extra(e.key, name) is not None for e in st.entries()
                    for name in ("retrieval-bound-1:n_samples=15:seed=0",))
     # the heat kernel signatures of the query and of the candidates matched, kept too
-    from gromov.retrieval import HEAT_SIGNATURE_NAME
+    from gromov.retrieval import heat_signature_name
     from gromov.spectrum import SIGNATURE_EIGENPAIRS
 
-    heat = {e.path: st.extra(e.key, f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}") for e in st.entries()}
+    assert heat_signature_name().startswith(f"heat-signature-1:k={SIGNATURE_EIGENPAIRS}:tau=0.00473")
+    heat = {e.path: st.extra(e.key, heat_signature_name()) for e in st.entries()}
     assert sum(h is not None for h in heat.values()) == 3 and heat[os.path.abspath(files[0])] is not None
     st.close()
     import gromov.spectrum as spectrum_module

@@ -1021,14 +1021,22 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
     return ([_Candidate(e.path or e.key, bound_of(e), shape_of(e), spectrum_of(e)) for e in kept], q, recorded)
 
 
+def heat_signature_name() -> str:
+    """The name a store entry's heat kernel signature is kept under: its eigenpairs and times,
+    so that a signature of other settings is never read back."""
+    from .spectrum import SIGNATURE_EIGENPAIRS, SIGNATURE_TAUS
+
+    return f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}:tau={','.join(f'{t:.6g}' for t in SIGNATURE_TAUS)}"
+
+
 def _kept_heat_signature(store, key: str, s: ShapeMetric) -> None:
     """The heat kernel signature of the entry ``key`` (:func:`gromov.spectrum.heat_signature`)
     read from beside it into the prepared shape ``s``, or computed and kept there."""
-    from .spectrum import SIGNATURE_EIGENPAIRS, heat_signature
+    from .spectrum import SIGNATURE_TAUS, heat_signature
 
-    name = f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}"
+    name = heat_signature_name()
     got = store.extra(key, name)
-    if got is not None and "h" in got and got["h"].shape[:1] == (s.mesh.n_vertices,):
+    if got is not None and "h" in got and got["h"].shape == (s.mesh.n_vertices, len(SIGNATURE_TAUS)):
         h = np.asarray(got["h"], dtype=np.float64)
         h.flags.writeable = False
         s.__dict__.setdefault("_spectrum", {})["heat"] = h
