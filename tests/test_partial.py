@@ -30,6 +30,14 @@ def cat_part(cat_working):
     return whole, part, p.vertex_map, r
 
 
+@pytest.fixture(scope="module")
+def cat_part_metrics(cat_part):
+    """The part and the whole of ``cat_part`` as geodesic metrics at the input resolution,
+    shared by the tests that match them again (their distance rows are computed once)."""
+    whole, part, _, _ = cat_part
+    return ShapeMetric(part, "geodesic", resolution=None), ShapeMetric(whole, "geodesic", resolution=None)
+
+
 def _errors(whole, images, truth):
     """Euclidean distance between the images and the true vertices, ÷ sqrt(area)."""
     return np.linalg.norm(whole.vertices[images] - whole.vertices[truth], axis=1) / np.sqrt(whole.area)
@@ -47,13 +55,14 @@ def test_part_maps_to_itself(cat_part):
     assert np.median(samples) < 0.01
 
 
-def test_refined_part_lands_on_its_own_vertices(cat_part):
+def test_refined_part_lands_on_its_own_vertices(cat_part, cat_part_metrics):
     """The part shares the whole's triangles where it was cut from it: after the refinement
     (the default, ``dense=True``) nine vertices in ten are mapped onto themselves, the others
     onto a neighbour. The placed map (``dense="placed"``) of the distortion alone (``curvature=0``)
     has seven in ten on themselves, and the refinement lands the others."""
     whole, part, truth, r = cat_part
-    placed = gromov.match(part, whole, partial=True, dense="placed", resolution=None)
+    sx, sy = cat_part_metrics
+    placed = gromov.match(sx, sy, partial=True, dense="placed", resolution=None)
     exact = np.mean(r.x_to_y_dense_vertex == truth)
     assert exact > 0.88
     assert np.mean(_errors(whole, r.x_to_y_dense_vertex, truth) < 1.5 * whole.mean_edge_length
@@ -72,19 +81,19 @@ def test_refined_part_lands_on_its_own_vertices(cat_part):
 
     assert iou(r.y_covered) >= iou(placed.y_covered) - 0.01 and iou(r.y_covered) > 0.9
     # from a placement less exact, the refinement lands most of the vertices on themselves
-    p0 = match_partial(part, whole, dense="placed", resolution=None, curvature=0.0)
-    r0 = match_partial(part, whole, dense=True, resolution=None, curvature=0.0)
+    p0 = match_partial(sx, sy, dense="placed", resolution=None, curvature=0.0)
+    r0 = match_partial(sx, sy, dense=True, resolution=None, curvature=0.0)
     exact0, exact_placed0 = np.mean(r0.x_to_y_dense_vertex == truth), np.mean(p0.x_to_y_dense_vertex == truth)
     assert exact0 > 0.88 and exact0 > exact_placed0 + 0.15
     assert _errors(whole, r0.x_to_y_dense_vertex, truth).mean() < _errors(whole, p0.x_to_y_dense_vertex,
                                                                           truth).mean()
 
 
-def test_true_map_is_a_fixed_point_and_a_ring_off_is_pulled_back(cat_part):
+def test_true_map_is_a_fixed_point_and_a_ring_off_is_pulled_back(cat_part, cat_part_metrics):
     """ZoomOut's steps keep the true map (nearly: a part's eigenfunctions are not the whole's
     restricted to it) and take a map moved by one ring back onto it."""
     whole, part, truth, _ = cat_part
-    sx, sy = ShapeMetric(part, "geodesic", resolution=None), ShapeMetric(whole, "geodesic", resolution=None)
+    sx, sy = cat_part_metrics
     assert np.mean(partial_zoomout(sx, sy, truth) == truth) > 0.9
     nbr = whole.adjacency.tocsr()
     off = nbr.indices[nbr.indptr[truth]]           # a neighbour of each true image
@@ -166,14 +175,13 @@ def test_curvature_term_places_a_part_the_distortion_alone_misplaces(data_dir):
     assert alone.ranking_distance == pytest.approx(alone.relative_distance, rel=1e-12)
 
 
-def test_the_ranking_distance_is_the_objective_of_the_search(cat_part):
+def test_the_ranking_distance_is_the_objective_of_the_search(cat_part_metrics):
     """``ranking_distance`` (what parts are ranked by) adds to the weighted squared residuals of
     ``relative_distance`` each sample's curvature cost times its total weight:
     R^2 - (D / diam)^2 = (1 / (2 diam))^2 sum_i (sum_j w_i w_j) cost_i(q_i) / sum_ij w_i w_j."""
     from gromov.partial import PARTIAL_CURVATURE, curvature_costs
 
-    whole, part, _, _ = cat_part
-    sx, sy = ShapeMetric(part, "geodesic", resolution=None), ShapeMetric(whole, "geodesic", resolution=None)
+    sx, sy = cat_part_metrics
     r = match_partial(sx, sy)
     W = np.outer(r.x_weight, r.x_weight)
     np.fill_diagonal(W, 0.0)
