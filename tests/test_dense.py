@@ -295,17 +295,28 @@ def test_cli_dense_outputs(tmp_path):
     assert np.mean(ids - 1 == np.argsort(perm)) > 0.97
 
 
-def test_dense_map_on_real_data_ignores_the_vertex_order(data_dir):
-    """wolf0 -> wolf1 of TOSCA (same numbering) and wolf0 -> a permuted wolf1: both precise."""
+@pytest.fixture(scope="module")
+def wolves(data_dir):
+    """wolf0 and wolf1 of TOSCA (4,344 vertices, one triangulation) and their metrics as
+    :func:`gromov.match` makes them by default, shared by the tests that match them (the
+    metrics and the input meshes' eigenpairs are computed once)."""
+    from gromov.shape_metric import ShapeMetric
+
     a = gromov.load(data_dir / "tosca" / "wolf0.off.gz")
     b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
+    return a, b, ShapeMetric(a, "diffusion"), ShapeMetric(b, "diffusion")
+
+
+def test_dense_map_on_real_data_ignores_the_vertex_order(wolves):
+    """wolf0 -> wolf1 of TOSCA (same numbering) and wolf0 -> a permuted wolf1: both precise."""
+    a, b, sa, sb = wolves
     c, perm = permutation_of(b, 7)
     inv = np.argsort(perm)
     ids = np.arange(a.n_vertices)
     means = []
-    for target, truth in ((b, ids), (c, inv[ids])):
-        r = gromov.match(a, target, dense=True)
-        means.append(dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, target, truth).mean)
+    for target, mesh, truth in ((sb, b, ids), (c, c, inv[ids])):
+        r = gromov.match(sa, target, dense=True)
+        means.append(dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, mesh, truth).mean)
     assert max(means) < 0.03
 
 
@@ -509,14 +520,13 @@ def test_the_input_refinement_maps_a_permuted_finer_copy():
         dense_maps(s, s, (np.arange(3), np.arange(3)), (np.arange(3), np.arange(3)), refine="spectral")
 
 
-def test_the_input_refinement_sharpens_a_real_map(data_dir):
+def test_the_input_refinement_sharpens_a_real_map(wolves):
     """wolf0 -> wolf1 of TOSCA (4,344 vertices, matched on a 3,000-vertex working mesh): the
     refinement on the input meshes brings most vertices to their very image and cuts the mean
     error of the placed map by more than half."""
-    a = gromov.load(data_dir / "tosca" / "wolf0.off.gz")
-    b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
+    a, b, sa, sb = wolves
     ids = np.arange(a.n_vertices)
-    placed, refined = (gromov.match(a, b, dense=mode) for mode in ("placed", True))
+    placed, refined = (gromov.match(sa, sb, dense=mode) for mode in ("placed", True))
     e_placed, e_refined = (dense_error(r.x_to_y_dense_face, r.x_to_y_dense_bary, b, ids) for r in (placed, refined))
     assert e_refined.mean < 0.5 * e_placed.mean
     assert np.median(e_refined.errors) == 0.0 < np.median(e_placed.errors)
@@ -793,7 +803,7 @@ def test_relax_reads_no_vertex_order():
     np.testing.assert_array_equal(relax_isometric(sxp, sy, shaken[perm]), out[perm])
 
 
-def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
+def test_relax_sharpens_a_real_refined_map(wolves, monkeypatch):
     """wolf0 -> wolf1 of TOSCA (one triangulation, so the truth is each vertex itself): the
     local isometry step after the refinement brings more vertices to their very image and
     lowers the mean error; the default dense map is the refined map so relaxed, given DENSE_ALIGN
@@ -803,14 +813,13 @@ def test_relax_sharpens_a_real_refined_map(data_dir, monkeypatch):
     import gromov.dense as dense
     from gromov.dense import _at_vertices, relax_isometric
 
-    a = gromov.load(data_dir / "tosca" / "wolf0.off.gz")
-    b = gromov.load(data_dir / "tosca" / "wolf1.off.gz")
+    a, b, sa, sb = wolves
     ids = np.arange(a.n_vertices)
-    default = b.from_input_ids(gromov.match(a, b, dense=True).x_to_y_dense_vertex[a.input_ids])
+    default = b.from_input_ids(gromov.match(sa, sb, dense=True).x_to_y_dense_vertex[a.input_ids])
     align_rounds = dense.DENSE_ALIGN
     monkeypatch.setattr(dense, "DENSE_RELAX", False)
     monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
-    r = gromov.match(a, b, dense=True)
+    r = gromov.match(sa, sb, dense=True)
     refined = b.from_input_ids(r.x_to_y_dense_vertex[a.input_ids])
     relaxed = relax_isometric(a, b, refined)
     back = relax_isometric(b, a, a.from_input_ids(r.y_to_x_dense_vertex[b.input_ids]))
@@ -976,21 +985,31 @@ def test_consistent_maps_repair_a_slid_map_from_the_other_direction():
         consistent_maps(x, y, T, ids, rounds=-1)
 
 
-def test_dense_maps_give_both_relaxed_maps_their_inverse_rounds(monkeypatch):
-    """``DENSE_INVERSE = R`` makes the dense maps :func:`consistent_maps` of the two relaxed
-    maps after R rounds; on one surface at two densities the rounds change a map."""
+@pytest.fixture(scope="module")
+def torus_densities():
+    """A bumpy torus, the same surface subdivided (4 times the faces), and their metrics as
+    :func:`gromov.match` makes them by default (computed once for the tests that match them)."""
     import trimesh
 
-    import gromov.dense as dense
+    from gromov.shape_metric import ShapeMetric
 
     x = bumpy_torus()
-    fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()   # 4 times the faces
+    fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()
     y = Mesh(fine.vertices, fine.faces)
+    return x, y, ShapeMetric(x, "diffusion"), ShapeMetric(y, "diffusion")
+
+
+def test_dense_maps_give_both_relaxed_maps_their_inverse_rounds(monkeypatch, torus_densities):
+    """``DENSE_INVERSE = R`` makes the dense maps :func:`consistent_maps` of the two relaxed
+    maps after R rounds; on one surface at two densities the rounds change a map."""
+    import gromov.dense as dense
+
+    x, y, sx, sy = torus_densities
     monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
     monkeypatch.setattr(dense, "DENSE_INVERSE", 0)
-    r0 = gromov.match(x, y, dense=True)
+    r0 = gromov.match(sx, sy, dense=True)
     monkeypatch.setattr(dense, "DENSE_INVERSE", 2)
-    r2 = gromov.match(x, y, dense=True)
+    r2 = gromov.match(sx, sy, dense=True)
     t, s = dense.consistent_maps(x, y, r0.x_to_y_dense_vertex, r0.y_to_x_dense_vertex, rounds=2)
     np.testing.assert_array_equal(r2.x_to_y_dense_vertex, t)
     np.testing.assert_array_equal(r2.y_to_x_dense_vertex, s)
@@ -1110,24 +1129,20 @@ def test_align_rounds_a_finer_copy_to_the_nearest_vertex_better_than_the_local_s
     assert aligned > relaxed + 0.03
 
 
-def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch):
+def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch, torus_densities):
     """``DENSE_ALIGN = R`` (no inverse round) makes the dense maps :func:`align_locally` of
     the maps without it, each direction on its own; on one surface at two densities it changes
     them. With ``DENSE_INVERSE = 1`` the aligned maps take the inverse round
     (:func:`consistent_maps`) and are aligned again from there (``since``); there both the
     round and the second alignment change the map from the fine copy."""
-    import trimesh
-
     import gromov.dense as dense
 
-    x = bumpy_torus()
-    fine = trimesh.Trimesh(x.vertices, x.faces, process=False).subdivide()
-    y = Mesh(fine.vertices, fine.faces)
+    x, y, sx, sy = torus_densities
     monkeypatch.setattr(dense, "DENSE_ALIGN", 0)
     monkeypatch.setattr(dense, "DENSE_INVERSE", 0)
-    r0 = gromov.match(x, y, dense=True)
+    r0 = gromov.match(sx, sy, dense=True)
     monkeypatch.setattr(dense, "DENSE_ALIGN", 3)
-    r3 = gromov.match(x, y, dense=True)
+    r3 = gromov.match(sx, sy, dense=True)
     t = dense.align_locally(x, y, r0.x_to_y_dense_vertex, rounds=3)
     s = dense.align_locally(y, x, r0.y_to_x_dense_vertex, rounds=3)
     np.testing.assert_array_equal(r3.x_to_y_dense_vertex, t)
@@ -1135,7 +1150,7 @@ def test_dense_maps_end_with_the_local_rigid_alignment_of_both_maps(monkeypatch)
     assert not (np.array_equal(t, r0.x_to_y_dense_vertex) and np.array_equal(s, r0.y_to_x_dense_vertex))
 
     monkeypatch.setattr(dense, "DENSE_INVERSE", 1)
-    r = gromov.match(x, y, dense=True)
+    r = gromov.match(sx, sy, dense=True)
     ct, cs = dense.consistent_maps(x, y, t, s, rounds=1, sweeps=dense.INVERSE_SWEEPS)
     again = dense.align_locally(y, x, cs, rounds=3, since=s)
     assert not np.array_equal(cs, s) and not np.array_equal(again, cs)   # both steps change the map
