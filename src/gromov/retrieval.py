@@ -970,20 +970,12 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
     name = f"{BOUND_NAME}:n_samples={int(n_samples)}:seed={int(seed)}"
 
     def bound_of(e):
-        def compute():
-            kept = store.extra(e.key, name)
-            if kept is not None:
-                try:
-                    return ShapeBound.from_arrays(kept)
-                except (KeyError, ValueError, TypeError):   # written otherwise: computed again
-                    pass
+        def bound():
             try:
-                b = shape_bound(_entry_shape(store, e, shape_args, tau), n_samples, seed, tau)
+                return shape_bound(_entry_shape(store, e, shape_args, tau), n_samples, seed, tau)
             except ValueError as exc:   # e.g. fewer working vertices than samples: say which shape
                 raise ValueError(f"{e.path or e.key}: {exc}") from None
-            store.put_extra(e.key, name, b.arrays())
-            return b
-        return compute
+        return lambda: _kept_extra(store, e.key, name, ShapeBound.from_arrays, bound, ShapeBound.arrays)
 
     kept = [e for e in entries if e.key != query_key]
     from .spectrum import SPECTRUM_K
@@ -991,14 +983,9 @@ def _store_candidates(query, store, metric, shape_args, n_samples, seed, rank_ta
     spectrum_name = f"{SPECTRUM_NAME}:k={SPECTRUM_K}"
 
     def spectrum_of(e):
-        def compute():
-            got = store.extra(e.key, spectrum_name)
-            if got is not None and "dna" in got:
-                return np.asarray(got["dna"], dtype=np.float64)
-            dna = _spectrum_of(_entry_shape(store, e, shape_args, tau))
-            store.put_extra(e.key, spectrum_name, {"dna": dna})
-            return dna
-        return compute
+        return lambda: _kept_extra(store, e.key, spectrum_name, lambda got: np.asarray(got["dna"], dtype=np.float64),
+                                   lambda: _spectrum_of(_entry_shape(store, e, shape_args, tau)),
+                                   lambda dna: {"dna": dna})
 
     def recorded(options):
         from .store import match_options_key
@@ -1029,19 +1016,35 @@ def heat_signature_name() -> str:
     return f"{HEAT_SIGNATURE_NAME}:k={SIGNATURE_EIGENPAIRS}:tau={','.join(f'{t:.6g}' for t in SIGNATURE_TAUS)}"
 
 
+def _kept_extra(store, key: str, name: str, read, compute, arrays):
+    """What is kept beside the entry ``key`` under ``name``, read back by ``read(arrays)``, or
+    (nothing kept, or kept otherwise: ``read`` raises KeyError, ValueError or TypeError)
+    ``compute()``, kept there as ``arrays(value)``."""
+    got = store.extra(key, name)
+    if got is not None:
+        try:
+            return read(got)
+        except (KeyError, ValueError, TypeError):   # written otherwise: computed again
+            pass
+    value = compute()
+    store.put_extra(key, name, arrays(value))
+    return value
+
+
 def _kept_heat_signature(store, key: str, s: ShapeMetric) -> None:
     """The heat kernel signature of the entry ``key`` (:func:`gromov.spectrum.heat_signature`)
     read from beside it into the prepared shape ``s``, or computed and kept there."""
     from .spectrum import SIGNATURE_TAUS, heat_signature
 
-    name = heat_signature_name()
-    got = store.extra(key, name)
-    if got is not None and "h" in got and got["h"].shape == (s.mesh.n_vertices, len(SIGNATURE_TAUS)):
-        h = np.asarray(got["h"], dtype=np.float64)
+    def read(got):
+        h = np.array(got["h"], dtype=np.float64)
+        if h.shape != (s.mesh.n_vertices, len(SIGNATURE_TAUS)):
+            raise ValueError(f"a heat signature of shape {h.shape}")
         h.flags.writeable = False
         s.__dict__.setdefault("_spectrum", {})["heat"] = h
-    else:
-        store.put_extra(key, name, {"h": heat_signature(s)})
+        return h
+
+    _kept_extra(store, key, heat_signature_name(), read, lambda: heat_signature(s), lambda h: {"h": h})
 
 
 def _entry_shape(store, entry, shape_args, rank_tau_scale) -> ShapeMetric:
