@@ -122,18 +122,37 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
          "more than the 8 vertices"),
     ],
 )
-def test_user_errors_are_one_line_without_traceback(tmp_path, argv, message):
+def test_user_errors_are_one_line_without_traceback(tmp_path, capsys, argv, message):
+    """Run in this process (``main`` as ``python -m gromov`` calls it; argparse's own errors
+    exit); ``test_a_user_error_in_its_own_process`` checks the process's exit code and stderr."""
     sphere = tmp_path / "s.off"
     gromov.save(icosphere(2), sphere)
     fixtures = str(__import__("pathlib").Path(__file__).parent / "fixtures")
     argv = [a.format(sphere=sphere, tmp=tmp_path, fixtures=fixtures) for a in argv]
-    r = subprocess.run([sys.executable, "-m", "gromov", *argv], capture_output=True, text=True)
-    assert r.returncode == 2
-    assert "Traceback" not in r.stderr
-    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2
+    _one_error_line(capsys.readouterr().err, message)
+
+
+def _one_error_line(stderr: str, message: str) -> None:
+    assert "Traceback" not in stderr
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
     # one error line (argparse adds a usage line before its own errors)
     assert [ln for ln in lines if "error:" in ln] == [lines[-1]]
     assert lines[-1].startswith("gromov") and message in lines[-1]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["info", "/no/such/file.off"], "/no/such/file.off"),                          # gromov's error
+    (["distances", "x.off", "--metric", "diffusion", "--steps", "0"], "positive integer"),   # argparse's
+])
+def test_a_user_error_in_its_own_process(argv, message):
+    r = subprocess.run([sys.executable, "-m", "gromov", *argv], capture_output=True, text=True)
+    assert r.returncode == 2
+    _one_error_line(r.stderr, message)
 
 
 def test_demo_runs(capsys):
