@@ -333,6 +333,27 @@ def test_store_extra_arrays_round_trip(tmp_path):
     assert set(got) == {"a"} and got["a"].tolist() == [0.0, 1.0, 2.0, 3.0]
 
 
+def test_kept_extra_is_read_back_or_computed_and_kept(tmp_path):
+    """Nothing kept: computed and kept; kept: read back, not computed; kept otherwise (the
+    reader raises): computed again and replaced."""
+    store = ShapeStore(tmp_path)
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return np.arange(3.0)
+
+    def kept():
+        return retrieval._kept_extra(store, "key", "name", lambda got: got["v"], compute, lambda v: {"v": v})
+
+    np.testing.assert_array_equal(kept(), [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(kept(), [0.0, 1.0, 2.0])
+    assert len(calls) == 1
+    store.put_extra("key", "name", {"other": np.zeros(2)})   # written otherwise
+    np.testing.assert_array_equal(kept(), [0.0, 1.0, 2.0])
+    assert len(calls) == 2 and set(store.extra("key", "name")) == {"v"}
+
+
 def test_triangle_estimates_are_the_largest_differences_through_known_pairs():
     """Points on a line: |d(a, m) - d(m, b)| is d(a, b) for m outside [a, b], less inside."""
     x = {"a": 0.0, "b": 1.0, "m": 3.0, "c": 0.5}
