@@ -254,6 +254,14 @@ def test_anchor_table_is_the_results_files():
     assert big["points"] == 1_000_000
     assert (f"| {big['ours_s']:.2f} s | {big['fpsample_vanilla_s']:.2f} s / {big['fpsample_quickfps_s']:.2f} s"
             in rows[8])
+    # the watertight row's neighbour descent: the study's measured run of that results file
+    m = _json("../studies/recognition_two_stage_signature.json")["measured"]
+    run = _json(m["file"])["collections"]["watertight"]["rows"]
+    descent = next(v for k, v in run.items() if k.endswith("--candidates 20 -k 10"))
+    assert descent["pairs_matched"] == m["pairs_matched"] and descent["seconds"] == m["seconds"]
+    assert (f"each shape's 10 nearest: {m['seconds'] / 60:.1f} min (`--candidates 20 -k 10`: "
+            f"{m['pairs_matched']:,} pairs; brute force's 10 for {100 * m['top_equal_list']:.1f}% of the shapes)"
+            in rows[-1])
 
 
 def test_benchmark_page_tables_are_the_results_files():
