@@ -526,6 +526,34 @@ def test_one_query_descent_read_off_the_complete_matrix():
     assert down["pairs_per_query"] > 2 and down["top_equal_list"] >= first["top_equal_list"]
 
 
+def test_signature_weighted_rankings_find_the_statistic_that_separates_the_classes():
+    """The S^a G^b GH^c H^d grid: the weights sum to 1, one row is the product's, the rows are
+    ordered by J, and where H alone separates the classes (the others are noise) H alone has
+    J = 0, the lowest, and a small weight on H does not."""
+    from gromov.spectrum import SIGNATURE_WEIGHT
+
+    st = _module("recognition_two_stage")
+    rng = np.random.default_rng(2)
+    labels = np.repeat(np.arange(3), 4)
+    same = labels[:, None] == labels[None]
+
+    def sym(x):
+        x = x + x.T
+        np.fill_diagonal(x, 0.0)
+        return x
+
+    mats = {"a": {"spectral": sym(rng.uniform(1, 1e3, (12, 12))), "trimmed": sym(rng.uniform(1, 1e3, (12, 12))),
+                  "gh": sym(rng.uniform(1, 1e3, (12, 12))),
+                  "signature": sym(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))}}
+    rows = st.signature_local(mats, {"a": labels})
+    assert all(abs(sum(r["weights"].values()) - 1.0) < 1e-9 and r["weights"]["signature"] > 0 for r in rows)
+    assert [r["weights"]["signature"] for r in rows if r["product"]] == [SIGNATURE_WEIGHT]
+    J = [r["pooled"]["J"] for r in rows]
+    alone = next(r for r in rows if r["weights"]["signature"] == 1.0)["pooled"]["J"]
+    assert J == sorted(J) and J[0] == alone == 0.0
+    assert all(r["pooled"]["J"] > 0 for r in rows if r["weights"]["signature"] == 0.1)
+
+
 def test_pointwise_study_distortion_reads_the_sample_pairs():
     """The signature distortion of the pointwise study: zero for a pair whose signatures agree at
     every sample pair, the RMS of the differences otherwise; trimming keeps the best-fitting

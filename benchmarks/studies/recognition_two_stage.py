@@ -312,6 +312,34 @@ def pair_local(mats: dict, labs: dict) -> list[dict]:
     return sorted(rows, key=lambda r: r["pooled"]["J"])
 
 
+#: The signature-weighted rankings: S^a G^b GH^c H^d, a + b + c + d = 1, d > 0, on this grid.
+SIGNATURE_GRID = np.round(np.arange(0.0, 1.0, 0.1), 1)
+
+
+def signature_local(mats: dict, labs: dict) -> list[dict]:
+    """Every S^a G^b GH^c H^d (S the working mesh's Shape-DNA distance, G the trimmed distortion,
+    GH the GH estimate, H the heat kernel signature's distortion, all of the same matches) on
+    :data:`SIGNATURE_GRID`, scored on the collections together (pooled NN, FT, EER, J) and on
+    each; ``product``: the weights of ``gromov.spectrum.combined``."""
+    from bench_recognition import pooled_scores
+
+    from gromov.spectrum import SIGNATURE_WEIGHT, SPECTRUM_WEIGHT
+
+    h = SIGNATURE_WEIGHT
+    product = (round((1 - h) * SPECTRUM_WEIGHT, 6), round((1 - h) * (1 - SPECTRUM_WEIGHT), 6), 0.0, h)
+    grid = [(a, b, c, round(1.0 - a - b - c, 6)) for a in SIGNATURE_GRID for b in SIGNATURE_GRID
+            for c in SIGNATURE_GRID if a + b + c < 1.0 - 1e-9]
+    rows = []
+    for a, b, c, d in [product, *grid]:
+        ranked = {n: m["spectral"] ** a * m["trimmed"] ** b * m["gh"] ** c * m["signature"] ** d
+                  for n, m in mats.items()}
+        pooled = pooled_scores(ranked, labs)
+        rows.append({"weights": {"spectral": a, "trimmed": b, "gh": c, "signature": d},
+                     "product": (a, b, c, d) == product, "pooled": {**pooled, "J": objective(pooled)},
+                     **{n: scores(ranked[n], labs[n]) for n in ranked}})
+    return sorted(rows, key=lambda r: r["pooled"]["J"])
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", required=True, type=Path)
@@ -374,6 +402,8 @@ def main(argv=None) -> None:
             res["first_stages"][c] = first_stages(mats[c], labs[c], [int(x) for x in args.candidates.split(",")],
                                                   args.top, row if c == args.collection else None, sec)
     res["pair_local"] = pair_local(mats, labs)
+    if all("signature" in m for m in mats.values()):
+        res["signature_local"] = signature_local(mats, labs)
     if args.descent:
         res["descent"] = {}
         for c in names:
@@ -432,6 +462,11 @@ def main(argv=None) -> None:
             print(f"{c} first stage {name}: " + "  ".join(
                 f"C {t['candidates']} {t['top_equal_list']:.3f}"
                 + (f" ({t['estimated_seconds'] / 60:.1f} min)" if "estimated_seconds" in t else "") for t in rows))
+    for r in [x for x in res.get("signature_local", []) if x["product"]] + res.get("signature_local", [])[:12]:
+        w = r["weights"]
+        per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
+        print(f"J {r['pooled']['J']:.4f}  S^{w['spectral']:.3g} G^{w['trimmed']:.3g} GH^{w['gh']:.3g} "
+              f"H^{w['signature']:.3g}{' (product)' if r['product'] else ''}  {per}")
     for r in res["pair_local"][:12]:
         per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
         print(f"J {r['pooled']['J']:.4f}  {r['signature'] or '-':<10} {r['statistic']:<8} w {r['w']:.2f}  {per}")
