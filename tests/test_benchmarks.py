@@ -554,6 +554,30 @@ def test_signature_weighted_rankings_find_the_statistic_that_separates_the_class
     assert all(r["pooled"]["J"] > 0 for r in rows if r["weights"]["signature"] == 0.1)
 
 
+def test_signature_weights_are_judged_on_the_classes_they_were_not_chosen_on():
+    """Each split chooses on half of the classes (and the other collections) and scores the
+    other half only; where H alone separates every class, the held-out half is perfect."""
+    st = _module("recognition_two_stage")
+    rng = np.random.default_rng(3)
+    labels = np.repeat(np.arange(4), 3)
+    same = labels[:, None] == labels[None]
+
+    def mats():
+        def sym(x):
+            x = x + x.T
+            np.fill_diagonal(x, 0.0)
+            return x
+        return {"spectral": sym(rng.uniform(1, 1e3, (12, 12))), "trimmed": sym(rng.uniform(1, 1e3, (12, 12))),
+                "gh": sym(rng.uniform(1, 1e3, (12, 12))),
+                "signature": sym(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))}
+
+    out = st.signature_split({"a": mats(), "b": mats()}, {"a": labels, "b": labels}, "a", trials=3)
+    assert len(out) == 3
+    for r in out:
+        assert len(r["chosen_on"]) == 2 and set(r["chosen_on"]) < set(labels.tolist())
+        assert r["held_out"]["nn"] == 1.0 and r["held_out"]["eer"] == 0.0 and r["weights"]["signature"] > 0.5
+
+
 def test_pointwise_study_distortion_reads_the_sample_pairs():
     """The signature distortion of the pointwise study: zero for a pair whose signatures agree at
     every sample pair, the RMS of the differences otherwise; trimming keeps the best-fitting

@@ -316,6 +316,23 @@ def pair_local(mats: dict, labs: dict) -> list[dict]:
 SIGNATURE_GRID = np.round(np.arange(0.0, 1.0, 0.1), 1)
 
 
+def signature_weights() -> tuple[tuple, list[tuple]]:
+    """``(product, grid)``: the weights (a, b, c, d) of ``gromov.spectrum.combined`` and those of
+    :data:`SIGNATURE_GRID` (a + b + c + d = 1, d > 0)."""
+    from gromov.spectrum import SIGNATURE_WEIGHT, SPECTRUM_WEIGHT
+
+    h = SIGNATURE_WEIGHT
+    product = (round((1 - h) * SPECTRUM_WEIGHT, 6), round((1 - h) * (1 - SPECTRUM_WEIGHT), 6), 0.0, h)
+    grid = [(float(a), float(b), float(c), float(round(1.0 - a - b - c, 6))) for a in SIGNATURE_GRID
+            for b in SIGNATURE_GRID for c in SIGNATURE_GRID if a + b + c < 1.0 - 1e-9]
+    return product, grid
+
+
+def _weighted(m: dict, w) -> np.ndarray:
+    a, b, c, d = w
+    return m["spectral"] ** a * m["trimmed"] ** b * m["gh"] ** c * m["signature"] ** d
+
+
 def signature_local(mats: dict, labs: dict) -> list[dict]:
     """Every S^a G^b GH^c H^d (S the working mesh's Shape-DNA distance, G the trimmed distortion,
     GH the GH estimate, H the heat kernel signature's distortion, all of the same matches) on
@@ -323,21 +340,42 @@ def signature_local(mats: dict, labs: dict) -> list[dict]:
     each; ``product``: the weights of ``gromov.spectrum.combined``."""
     from bench_recognition import pooled_scores
 
-    from gromov.spectrum import SIGNATURE_WEIGHT, SPECTRUM_WEIGHT
-
-    h = SIGNATURE_WEIGHT
-    product = (round((1 - h) * SPECTRUM_WEIGHT, 6), round((1 - h) * (1 - SPECTRUM_WEIGHT), 6), 0.0, h)
-    grid = [(a, b, c, round(1.0 - a - b - c, 6)) for a in SIGNATURE_GRID for b in SIGNATURE_GRID
-            for c in SIGNATURE_GRID if a + b + c < 1.0 - 1e-9]
+    product, grid = signature_weights()
     rows = []
     for a, b, c, d in [product, *grid]:
-        ranked = {n: m["spectral"] ** a * m["trimmed"] ** b * m["gh"] ** c * m["signature"] ** d
-                  for n, m in mats.items()}
+        ranked = {n: _weighted(m, (a, b, c, d)) for n, m in mats.items()}
         pooled = pooled_scores(ranked, labs)
         rows.append({"weights": {"spectral": a, "trimmed": b, "gh": c, "signature": d},
                      "product": (a, b, c, d) == product, "pooled": {**pooled, "J": objective(pooled)},
                      **{n: scores(ranked[n], labs[n]) for n in ranked}})
     return sorted(rows, key=lambda r: r["pooled"]["J"])
+
+
+def signature_split(mats: dict, labs: dict, collection: str, trials: int = 6, seed: int = 0) -> list[dict]:
+    """The grid of :func:`signature_local` judged on classes it was not chosen on: in each of
+    ``trials`` seeded splits of ``collection``'s classes into halves, the weights of lowest J on
+    the other collections and one half, scored on the other half beside the product's weights."""
+    from bench_recognition import pooled_scores
+
+    product, grid = signature_weights()
+    labels = np.asarray(labs[collection])
+    classes = sorted(set(labels.tolist()))
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(trials):
+        train = sorted(rng.permutation(classes)[: len(classes) // 2].tolist())
+        a, b = np.flatnonzero(np.isin(labels, train)), np.flatnonzero(~np.isin(labels, train))
+        fit = {c: m for c, m in mats.items() if c != collection}
+        fit_labs = {c: labs[c] for c in fit}
+        fit[collection] = {k: v[np.ix_(a, a)] for k, v in mats[collection].items()}
+        fit_labs[collection] = labels[a]
+        best = min(grid, key=lambda w: objective(pooled_scores({c: _weighted(m, w) for c, m in fit.items()},
+                                                                        fit_labs)))
+        held = {k: v[np.ix_(b, b)] for k, v in mats[collection].items()}
+        out.append({"chosen_on": train, "weights": dict(zip(("spectral", "trimmed", "gh", "signature"), best)),
+                    "held_out": scores(_weighted(held, best), labels[b]),
+                    "product": scores(_weighted(held, product), labels[b])})
+    return out
 
 
 def main(argv=None) -> None:
@@ -404,6 +442,7 @@ def main(argv=None) -> None:
     res["pair_local"] = pair_local(mats, labs)
     if all("signature" in m for m in mats.values()):
         res["signature_local"] = signature_local(mats, labs)
+        res["signature_split"] = signature_split(mats, labs, args.collection)
     if args.descent:
         res["descent"] = {}
         for c in names:
@@ -467,6 +506,10 @@ def main(argv=None) -> None:
         per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
         print(f"J {r['pooled']['J']:.4f}  S^{w['spectral']:.3g} G^{w['trimmed']:.3g} GH^{w['gh']:.3g} "
               f"H^{w['signature']:.3g}{' (product)' if r['product'] else ''}  {per}")
+    for r in res.get("signature_split", []):
+        h, p = r["held_out"], r["product"]
+        print(f"chosen on {','.join(r['chosen_on'])} (+ the others): {r['weights']}; held-out half NN {h['nn']:.3f} "
+              f"FT {h['ft']:.3f} EER {h['eer']:.3f}, product NN {p['nn']:.3f} FT {p['ft']:.3f} EER {p['eer']:.3f}")
     for r in res["pair_local"][:12]:
         per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
         print(f"J {r['pooled']['J']:.4f}  {r['signature'] or '-':<10} {r['statistic']:<8} w {r['w']:.2f}  {per}")
