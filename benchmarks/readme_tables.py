@@ -149,7 +149,6 @@ def anchors_table() -> str:
     tr, tdn = rem["summary"], rem["density"]["summary"]
     pert = dense["perturbed"]
     two_stage = json.loads((HERE.parent / "studies" / "recognition_two_stage_signature.json").read_text())
-    two_stage["measured"]["run"] = load(two_stage["measured"]["file"])
     rows = [
         "| task | gromov | anchor |",
         "|---|---|---|",
@@ -186,7 +185,7 @@ def anchors_table() -> str:
         *collection_rows(load("collection_retrieval.json"), load("collection_resume.json"),
                          load("collection_dask.json")),
         partial_row(load("partial_refined.json"), load("partial.json")),
-        recognition_row(load("recognition_full.json"), two_stage),
+        recognition_row(load("recognition_full.json"), two_stage, load(two_stage["measured"]["file"])),
     ]
     return "\n".join(rows)
 
@@ -204,12 +203,12 @@ def partial_row(mode: dict, old: dict) -> str:
             f"mean / median; gross pairs | {ours}; {gross} of {n} (`partial=True`) | {pyfm}; {gross_pyfm} of {n} (pyFM) |")
 
 
-def recognition_row(r: dict, study: dict | None = None) -> str:
+def recognition_row(r: dict, study: dict | None = None, descent: dict | None = None) -> str:
     """bench_recognition.py on the whole watertight collection: gromov's combined ranking (every
     pair, or in two stages) beside Shape-DNA and the pooled HKS, as a row of the anchors table;
-    with ``study`` (recognition_two_stage.py's JSON; its ``measured`` run's results file read
-    into ``measured["run"]``), also the time of each shape's nearest by neighbour descent and
-    for how many shapes they are brute force's."""
+    with ``study`` (recognition_two_stage.py's JSON) and ``descent`` (the results file of its
+    ``measured`` run), also the time of each shape's nearest by neighbour descent and for how
+    many shapes they are brute force's."""
     c = r["collections"]["watertight"]
     rows = c["rows"]
     name, ours = next((k, v) for k, v in rows.items() if k.startswith("gromov --units area") and "(" not in k)
@@ -223,17 +222,17 @@ def recognition_row(r: dict, study: dict | None = None) -> str:
     return (f"| recognition, SHREC'07 watertight, {c['shapes']} shapes of {len(c['classes'])} classes: "
             f"nearest neighbour; first tier; EER; time on 2 cores | {_pct(ours['nn'])}; {_pct(ours['ft'])}; "
             f"{eer(ours)}; {_minutes(ours['seconds'])} (`{name[len('gromov '):]}`: {which} {pairs:,} pairs)"
-            f"{_descent_cell(study)} | "
+            f"{_descent_cell(study, descent)} | "
             f"{_pct(dna['nn'])}; {_pct(dna['ft'])}; {eer(dna)}; {_minutes(dna['seconds'])} (Shape-DNA); "
             f"{_pct(hks['nn'])}; {_pct(hks['ft'])}; {eer(hks)}; {_minutes(hks['seconds'])} (pooled HKS) |")
 
 
-def _descent_cell(study: dict | None) -> str:
+def _descent_cell(study: dict | None, descent: dict | None) -> str:
     """``; each shape's 10 nearest: T (...)`` of a measured neighbour-descent run, or nothing."""
     m = (study or {}).get("measured")
-    if not m:
+    if not m or descent is None:
         return ""
-    name = next(k for k in m["run"]["collections"]["watertight"]["rows"] if "--candidates" in k and "(" not in k)
+    name = next(k for k in descent["collections"]["watertight"]["rows"] if "--candidates" in k and "(" not in k)
     flags = name[name.index("--candidates"):]
     return (f"; each shape's {study['top']} nearest: {_minutes(m['seconds'])} (`{flags}`: "
             f"{m['pairs_matched']:,} pairs; brute force's {study['top']} for {_pct(m['top_equal_list'])} of the shapes)")

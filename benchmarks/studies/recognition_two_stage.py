@@ -295,8 +295,6 @@ WEIGHTS = (0.0, 0.15, 0.25, 0.35, 0.5, 0.65)
 
 def pair_local(mats: dict, labs: dict) -> list[dict]:
     """Every S^w G^(1-w) scored on the collections together (pooled NN, FT, EER) and on each."""
-    from bench_recognition import pooled_scores
-
     rows = []
     present = [sig for sig in (*SIGNATURES, "eccentricity") if all(sig in m for m in mats.values())]
     for sig in present:
@@ -305,11 +303,16 @@ def pair_local(mats: dict, labs: dict) -> list[dict]:
                 if w == 0.0 and sig != SIGNATURES[0]:
                     continue
                 ranked = {c: m[sig] ** w * m[stat] ** (1.0 - w) for c, m in mats.items()}
-                pooled = pooled_scores(ranked, labs)
-                rows.append({"signature": sig if w else None, "statistic": stat, "w": w,
-                             "pooled": {**pooled, "J": objective(pooled)},
-                             **{c: scores(ranked[c], labs[c]) for c in ranked}})
+                rows.append({"signature": sig if w else None, "statistic": stat, "w": w, **_scored(ranked, labs)})
     return sorted(rows, key=lambda r: r["pooled"]["J"])
+
+
+def _scored(ranked: dict, labs: dict) -> dict:
+    """Rankings of several collections scored together (``pooled``: NN, FT, EER and J) and on each."""
+    from bench_recognition import pooled_scores
+
+    pooled = pooled_scores(ranked, labs)
+    return {"pooled": {**pooled, "J": objective(pooled)}, **{c: scores(ranked[c], labs[c]) for c in ranked}}
 
 
 #: The signature-weighted rankings: S^a G^b GH^c H^d, a + b + c + d = 1, d > 0, on this grid.
@@ -328,9 +331,20 @@ def signature_weights() -> tuple[tuple, list[tuple]]:
     return product, grid
 
 
+#: The matrices the weights (a, b, c, d) of the signature-weighted rankings apply to, in order.
+WEIGHTED = ("spectral", "trimmed", "gh", "signature")
+
+
 def _weighted(m: dict, w) -> np.ndarray:
-    a, b, c, d = w
-    return m["spectral"] ** a * m["trimmed"] ** b * m["gh"] ** c * m["signature"] ** d
+    """S^a G^b GH^c H^d of one collection's matrices ``m``."""
+    out = np.ones_like(m[WEIGHTED[0]])
+    for name, x in zip(WEIGHTED, w):
+        out = out * m[name] ** x
+    return out
+
+
+def _named(w) -> dict:
+    return dict(zip(WEIGHTED, w))
 
 
 def signature_local(mats: dict, labs: dict) -> list[dict]:
@@ -338,16 +352,9 @@ def signature_local(mats: dict, labs: dict) -> list[dict]:
     GH the GH estimate, H the heat kernel signature's distortion, all of the same matches) on
     :data:`SIGNATURE_GRID`, scored on the collections together (pooled NN, FT, EER, J) and on
     each; ``product``: the weights of ``gromov.spectrum.combined``."""
-    from bench_recognition import pooled_scores
-
     product, grid = signature_weights()
-    rows = []
-    for a, b, c, d in [product, *grid]:
-        ranked = {n: _weighted(m, (a, b, c, d)) for n, m in mats.items()}
-        pooled = pooled_scores(ranked, labs)
-        rows.append({"weights": {"spectral": a, "trimmed": b, "gh": c, "signature": d},
-                     "product": (a, b, c, d) == product, "pooled": {**pooled, "J": objective(pooled)},
-                     **{n: scores(ranked[n], labs[n]) for n in ranked}})
+    rows = [{"weights": _named(w), "product": w == product,
+             **_scored({n: _weighted(m, w) for n, m in mats.items()}, labs)} for w in [product, *grid]]
     return sorted(rows, key=lambda r: r["pooled"]["J"])
 
 
@@ -355,8 +362,6 @@ def signature_split(mats: dict, labs: dict, collection: str, trials: int = 6, se
     """The grid of :func:`signature_local` judged on classes it was not chosen on: in each of
     ``trials`` seeded splits of ``collection``'s classes into halves, the weights of lowest J on
     the other collections and one half, scored on the other half beside the product's weights."""
-    from bench_recognition import pooled_scores
-
     product, grid = signature_weights()
     labels = np.asarray(labs[collection])
     classes = sorted(set(labels.tolist()))
@@ -369,10 +374,9 @@ def signature_split(mats: dict, labs: dict, collection: str, trials: int = 6, se
         fit_labs = {c: labs[c] for c in fit}
         fit[collection] = {k: v[np.ix_(a, a)] for k, v in mats[collection].items()}
         fit_labs[collection] = labels[a]
-        best = min(grid, key=lambda w: objective(pooled_scores({c: _weighted(m, w) for c, m in fit.items()},
-                                                                        fit_labs)))
+        best = min(grid, key=lambda w: _scored({c: _weighted(m, w) for c, m in fit.items()}, fit_labs)["pooled"]["J"])
         held = {k: v[np.ix_(b, b)] for k, v in mats[collection].items()}
-        out.append({"chosen_on": train, "weights": dict(zip(("spectral", "trimmed", "gh", "signature"), best)),
+        out.append({"chosen_on": train, "weights": _named(best),
                     "held_out": scores(_weighted(held, best), labels[b]),
                     "product": scores(_weighted(held, product), labels[b])})
     return out
