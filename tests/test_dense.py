@@ -566,14 +566,15 @@ def test_input_eigenpairs_are_the_dense_generalised_eigenpairs(monkeypatch, fact
     import scipy.linalg
     import scipy.sparse as sp
 
-    from gromov.dense import _spd_solver, laplace_beltrami_basis
+    from gromov._eigen import spd_solver
+    from gromov.dense import laplace_beltrami_basis
     from gromov.metrics.diffusion import cotan_laplacian
 
     if factorisation == "cholmod":
         pytest.importorskip("cholespy")
     else:
         monkeypatch.setitem(sys.modules, "cholespy", None)   # import fails: the scipy path
-    assert _spd_solver(sp.identity(3, format="csr"))[1] == factorisation
+    assert spd_solver(sp.identity(3, format="csr"))[1] == factorisation
     m = bumpy_torus()
     L, M = cotan_laplacian(m)
     lam_ref, phi_ref = scipy.linalg.eigh(L.toarray(), M.toarray(), subset_by_index=[0, 39])
@@ -591,14 +592,14 @@ def test_spd_solver_falls_back_to_lu_where_cholesky_fails():
     """A matrix that is not positive definite gets SuperLU, and the solve is right either way."""
     import scipy.sparse as sp
 
-    from gromov.dense import _spd_solver
+    from gromov._eigen import spd_solver
 
     spd = sp.csr_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]]))
     indefinite = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))
-    solve, name = _spd_solver(indefinite)
+    solve, name = spd_solver(indefinite)
     assert name == "superlu"
     np.testing.assert_allclose(indefinite @ solve(np.array([1.0, 2.0])), [1.0, 2.0])
-    solve, _ = _spd_solver(spd)
+    solve, _ = spd_solver(spd)
     b = np.arange(6.0).reshape(3, 2)
     np.testing.assert_allclose(spd @ solve(b), b)
 

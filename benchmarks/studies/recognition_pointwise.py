@@ -112,7 +112,7 @@ def working_signature(path: str) -> tuple[np.ndarray, np.ndarray]:
     vertex in space: what a pair worker holding only the prepared shapes could compute."""
     from scipy.spatial import cKDTree
 
-    from gromov.dense import _shift_invert_eigsh
+    from gromov._eigen import shift_invert_eigsh
     from gromov.metrics.diffusion import _laplacian
     from gromov.shape_metric import ShapeMetric
 
@@ -122,7 +122,7 @@ def working_signature(path: str) -> tuple[np.ndarray, np.ndarray]:
         s = ShapeMetric(path, "diffusion", resolution=3000, metric_options=OPTIONS)
     work, inp = s.mesh, s.input
     _, L, M, area = _laplacian(work, "cotan", "a heat kernel signature")
-    lam, phi = _shift_invert_eigsh(L, M, min(work.n_vertices - 2, EIGENPAIRS + work.n_components),
+    lam, phi = shift_invert_eigsh(L, M, min(work.n_vertices - 2, EIGENPAIRS + work.n_components),
                                    sigma=-1e-2 / area)
     h = heat_signature(lam, phi, area)
     _, near = cKDTree(np.asarray(work.vertices)).query(np.asarray(inp.vertices))

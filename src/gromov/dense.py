@@ -43,6 +43,7 @@ import numpy as np
 from numba import njit
 
 from ._arrays import one_blas_thread, readonly
+from ._eigen import shift_invert_eigsh, spd_solver
 from ._project import project_among
 from .resolution import gather
 
@@ -374,76 +375,17 @@ def laplace_beltrami_basis(mesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     ``mesh`` (:func:`gromov.metrics.diffusion.cotan_laplacian`), :math:`L\phi = \lambda M\phi`,
     M-orthonormal, by increasing eigenvalue, and the lumped vertex masses.
 
-    Shift-invert Lanczos (ARPACK: Lehoucq, Sorensen & Yang, *ARPACK Users' Guide*, SIAM
-    1998) about :math:`\sigma = -10^{-2}/\text{area}`, just below the spectrum (as pyFM does on
-    area-normalised meshes), from a fixed start vector: the same eigenpairs on every run. The
-    operator :math:`(L - \sigma M)^{-1}`, symmetric positive definite, is applied with a sparse
-    Cholesky factor (CHOLMOD's supernodal factorisation: Chen, Davis, Hager & Rajamanickam, ACM
-    TOMS 35(3), 2008; through ``cholespy``) where that package is installed, else with SuperLU;
-    the Krylov space holds :math:`\lfloor 3k/2 \rfloor + 1` vectors, and BLAS runs on one
-    thread. Fewer than ``k`` for a mesh of ``k + 2`` vertices or fewer.
+    Shift-invert Lanczos (:func:`gromov._eigen.shift_invert_eigsh`) about
+    :math:`\sigma = -10^{-2}/\text{area}`, just below the spectrum (as pyFM does on
+    area-normalised meshes), from a fixed start vector: the same eigenpairs on every run.
+    Fewer than ``k`` for a mesh of ``k + 2`` vertices or fewer.
     """
     from .metrics.diffusion import cotan_laplacian
 
     L, M = cotan_laplacian(mesh)
     k = int(min(k, mesh.n_vertices - 2))
-    lam, phi = _shift_invert_eigsh(L, M, k, sigma=-1e-2 / max(mesh.area, 1e-300))
+    lam, phi = shift_invert_eigsh(L, M, k, sigma=-1e-2 / max(mesh.area, 1e-300))
     return np.ascontiguousarray(phi[:, np.argsort(lam)]), np.asarray(M.diagonal())
-
-
-def _spd_solver(a, method: str = "auto"):
-    """``(solve, name)``: ``solve(b)`` = :math:`a^{-1} b` for a sparse symmetric positive
-    definite ``a``, by CHOLMOD (``cholespy``; ``method`` "auto" where installed and ``a``
-    factors, or "cholmod") or by SuperLU ("superlu", and "auto" otherwise)."""
-    import scipy.sparse as sp
-
-    if method not in ("auto", "cholmod", "superlu"):
-        raise ValueError(f"method must be 'auto', 'cholmod' or 'superlu', got {method!r}")
-    a = sp.csr_matrix(a, dtype=np.float64)
-    cholespy = None
-    if method != "superlu":
-        try:
-            import cholespy
-        except ImportError:
-            if method == "cholmod":
-                raise ImportError("the CHOLMOD factorisation needs cholespy: pip install cholespy") from None
-    if cholespy is not None:
-        a.sort_indices()
-        try:
-            chol = cholespy.CholeskySolverD(a.shape[0], a.indptr.astype(np.int32), a.indices.astype(np.int32),
-                                            np.ascontiguousarray(a.data), cholespy.MatrixType.CSR)
-        except ValueError:   # not positive definite (a degenerate mesh): the LU below
-            if method == "cholmod":
-                raise
-            chol = None
-        if chol is not None:
-            def solve(b):
-                b = np.ascontiguousarray(b, dtype=np.float64)
-                x = np.empty_like(b)
-                chol.solve(b, x)
-                return x
-            return solve, "cholmod"
-    from scipy.sparse.linalg import splu
-
-    return splu(a.tocsc()).solve, "superlu"
-
-
-def _shift_invert_eigsh(L, M, k: int, *, sigma: float, method: str = "auto"):
-    r"""ARPACK's ``k`` eigenpairs of :math:`L\phi = \lambda M\phi` nearest ``sigma`` (< 0, below
-    the spectrum of the positive semi-definite ``L``), as ``eigsh(L, k, M, sigma)`` computes them
-    with :func:`_spd_solver` (``method``) for the shift-invert operator."""
-    from scipy.sparse.linalg import LinearOperator, eigsh
-    from threadpoolctl import threadpool_limits
-
-    n = L.shape[0]
-    solve, _ = _spd_solver(L - sigma * M, method)
-    op = LinearOperator((n, n), matvec=lambda x: solve(np.ravel(x)), dtype=np.float64)
-    v0 = np.full(n, 1.0 / np.sqrt(n))
-    # Lanczos makes many small, memory-bound BLAS calls: threads only add overhead there, and
-    # next to another busy process they slow it several times
-    with threadpool_limits(limits=1, user_api="blas"):
-        return eigsh(L, k=k, M=M, sigma=sigma, which="LM", v0=v0, OPinv=op,
-                     ncv=min(n, max(k + k // 2 + 1, 20)))
 
 
 def prolonged_basis(working, k: int, *, guard: float = BASIS_GUARD,
@@ -506,7 +448,7 @@ def prolonged_basis(working, k: int, *, guard: float = BASIS_GUARD,
     V = P @ phi_w
     L, M = cotan_laplacian(mesh)
     mass = np.asarray(M.diagonal())     # lumped: M V is a row scaling
-    solve, _ = _spd_solver(L + (1e-2 / max(mesh.area, 1e-300)) * M)
+    solve, _ = spd_solver(L + (1e-2 / max(mesh.area, 1e-300)) * M)
     try:
         with one_blas_thread():
             for _ in range(int(iterations)):

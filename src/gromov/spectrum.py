@@ -65,7 +65,7 @@ def _eigenpairs(shape, k: int, what: str):
     """``(eigenvalues >= 0, eigenvectors, area)``: the ``k`` (plus one per component) lowest
     eigenpairs of a shape's working cotangent Laplacian with lumped masses (a point cloud's
     robust Laplacian), by shift-invert Lanczos as the dense maps compute them."""
-    from .dense import _shift_invert_eigsh
+    from ._eigen import shift_invert_eigsh
     from .metrics.diffusion import POINT_CLOUD_NEIGHBORS, _laplacian
 
     mesh = shape.mesh
@@ -74,7 +74,7 @@ def _eigenpairs(shape, k: int, what: str):
     want = min(n - 2, k + int(getattr(mesh, "n_components", 1)))
     if want < 1:
         raise ValueError(f"{what} needs at least 3 working vertices, got {n}")
-    lam, phi = _shift_invert_eigsh(L, M, want, sigma=-1e-2 / max(area, 1e-300))
+    lam, phi = shift_invert_eigsh(L, M, want, sigma=-1e-2 / max(area, 1e-300))
     return np.maximum(lam, 0.0), phi, area
 
 

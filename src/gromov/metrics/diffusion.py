@@ -70,6 +70,7 @@ from numba import get_num_threads, njit, prange
 from scipy.sparse.linalg import ArpackError, eigsh
 from scipy.spatial.distance import cdist
 
+from .._eigen import shift_invert_eigsh
 from ..errors import MetricError
 from ..mesh import Mesh, PointCloud
 from ._base import MetricSolver, check_shape
@@ -404,11 +405,12 @@ def _gram_parallel(sq, G, nb):
         _gram_tiles(sq, G, np.int64(bi))   # (prange's index is unsigned: one compilation)
 
 
-def _eigsh_top(a, k, *, M=None, sigma):
-    """Eigenpairs of the symmetric ``a`` (generalised with ``M``) nearest to ``sigma``."""
+def _eigsh_top(a, k, *, sigma):
+    """Eigenpairs of the symmetric ``a`` nearest to ``sigma`` (a graph's diffusion operator, not
+    positive definite: SuperLU's shift-invert)."""
     n = a.shape[0]
     v0 = np.full(n, 1.0 / np.sqrt(n))  # deterministic start vector
-    return eigsh(a, k=k, M=M, sigma=sigma, which="LM", v0=v0)
+    return eigsh(a, k=k, sigma=sigma, which="LM", v0=v0)
 
 
 class GraphDiffusionSolver(_SpectralDiffusion):
@@ -651,7 +653,7 @@ class HeatDiffusionSolver(_SpectralDiffusion):
                 lam = np.maximum(lam, 0.0)
                 self.eigenvalues, self.truncation_bound = lam, 0.0
                 return self._scaled(lam, phi * np.exp(-lam * t))
-            lam, phi = _eigsh_top(self.stiffness, k, M=self.mass, sigma=sigma)
+            lam, phi = shift_invert_eigsh(self.stiffness, self.mass, k, sigma=sigma)
             order = np.argsort(lam)
             lam, phi = np.maximum(lam[order], 0.0), phi[:, order]
             psi = phi * np.exp(-lam * t)
