@@ -578,6 +578,36 @@ def test_signature_weights_are_judged_on_the_classes_they_were_not_chosen_on():
         assert r["held_out"]["nn"] == 1.0 and r["held_out"]["eer"] == 0.0 and r["weights"]["signature"] > 0.5
 
 
+def test_size_factor_is_chosen_where_the_size_separates_the_classes():
+    """The product ranking times R^d: d = 0 is the product itself; where the product is noise
+    and each class has a size of its own, a larger d separates the classes (J falls to 0), and
+    the splits choose d > 0 and score the held-out half perfectly."""
+    st = _module("recognition_two_stage")
+    rng = np.random.default_rng(4)
+    labels = np.repeat(np.arange(4), 3)
+
+    def mats():
+        def sym(x):
+            x = x + x.T
+            np.fill_diagonal(x, 0.0)
+            return x
+        area = np.log(10.0 ** labels * rng.uniform(1.0, 1.05, 12))
+        return {"spectral": sym(rng.uniform(1, 2, (12, 12))), "trimmed": sym(rng.uniform(1, 2, (12, 12))),
+                "gh": sym(rng.uniform(1, 2, (12, 12))), "signature": sym(rng.uniform(1, 2, (12, 12))),
+                "size": np.exp(0.5 * np.abs(area[:, None] - area[None, :]))}
+
+    m = {"a": mats(), "b": mats()}
+    labs = {"a": labels, "b": labels}
+    out = st.size_factor(m, labs, "a", trials=3)
+    whole = {r["d"]: r["pooled"]["J"] for r in out["whole"]}
+    product, _ = st.signature_weights()
+    plain = st._scored({c: st._weighted(x, product) for c, x in m.items()}, labs)["pooled"]["J"]
+    assert whole[0.0] == plain > 0 and whole[max(whole)] == 0.0
+    for r in out["split"]:
+        assert r["d"] > 0 and r["held_out"]["nn"] == 1.0 and r["held_out"]["eer"] == 0.0
+        assert r["product"]["eer"] > 0
+
+
 def test_pointwise_study_distortion_reads_the_sample_pairs():
     """The signature distortion of the pointwise study: zero for a pair whose signatures agree at
     every sample pair, the RMS of the differences otherwise; trimming keeps the best-fitting

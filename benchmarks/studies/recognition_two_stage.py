@@ -43,6 +43,9 @@ ranking, its two factors, the GH estimate and the two per-shape descriptors of t
 With ``--with tosca`` (the same benchmark run on TOSCA into the same cache), every weighted
 geometric mean S^w G^(1-w) of a per-shape distance S and a GMDS statistic G is scored on both
 collections together, J = mean(1 - NN, 1 - first tier, EER) as in recognition_defaults.py.
+With the signature distortion in the cache, also the grid S^a G^b GH^c H^d (:func:`signature_local`,
+:func:`signature_split`) and the combined ranking times a size factor (:func:`size_factor`; the
+input meshes' areas are read from ``descriptors/``).
 """
 
 from __future__ import annotations
@@ -283,6 +286,8 @@ def load(cache: Path, data: str, name: str) -> tuple[dict, np.ndarray]:
            "hks_input": euclidean(np.stack([d["hks"] for d in desc]))}
     if "signature" in z.files and z["signature"].ndim == 2:   # the combined ranking's third factor
         out["signature"] = np.asarray(z["signature"], dtype=np.float64)
+    area = np.log([float(d["area"]) for d in desc])
+    out["size"] = np.exp(0.5 * np.abs(area[:, None] - area[None, :]))   # sqrt(max(A_x/A_y, A_y/A_x))
     return out, labels
 
 
@@ -382,6 +387,41 @@ def signature_split(mats: dict, labs: dict, collection: str, trials: int = 6, se
     return out
 
 
+#: The exponents d of the size factor R^d (:func:`size_factor`).
+SIZE_EXPONENTS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0)
+
+
+def size_factor(mats: dict, labs: dict, collection: str, trials: int = 6, seed: int = 0) -> dict:
+    """The product ranking times R^d, R = sqrt(max(A_x / A_y, A_y / A_x)) of the input meshes'
+    areas (each shape's size, which unit area removes from the matches): ``whole``, every d of
+    :data:`SIZE_EXPONENTS` scored on the collections together; ``split``, the d of lowest J on the
+    other collections and half of ``collection``'s classes, scored on the other half beside d = 0
+    (the splits of :func:`signature_split`)."""
+    product, _ = signature_weights()
+
+    def ranked(m, d):
+        return _weighted(m, product) * m["size"] ** d
+
+    whole = [{"d": d, **_scored({c: ranked(m, d) for c, m in mats.items()}, labs)} for d in SIZE_EXPONENTS]
+    labels = np.asarray(labs[collection])
+    classes = sorted(set(labels.tolist()))
+    rng = np.random.default_rng(seed)
+    split = []
+    for _ in range(trials):
+        train = sorted(rng.permutation(classes)[: len(classes) // 2].tolist())
+        a, b = np.flatnonzero(np.isin(labels, train)), np.flatnonzero(~np.isin(labels, train))
+        fit = {c: m for c, m in mats.items() if c != collection}
+        fit_labs = {c: labs[c] for c in fit}
+        fit[collection] = {k: v[np.ix_(a, a)] for k, v in mats[collection].items()}
+        fit_labs[collection] = labels[a]
+        best = min(SIZE_EXPONENTS, key=lambda d: _scored({c: ranked(m, d) for c, m in fit.items()},
+                                                          fit_labs)["pooled"]["J"])
+        held = {k: v[np.ix_(b, b)] for k, v in mats[collection].items()}
+        split.append({"chosen_on": train, "d": best, "held_out": scores(ranked(held, best), labels[b]),
+                      "product": scores(ranked(held, 0.0), labels[b])})
+    return {"whole": whole, "split": split}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", required=True, type=Path)
@@ -447,6 +487,7 @@ def main(argv=None) -> None:
     if all("signature" in m for m in mats.values()):
         res["signature_local"] = signature_local(mats, labs)
         res["signature_split"] = signature_split(mats, labs, args.collection)
+        res["size_factor"] = size_factor(mats, labs, args.collection)
     if args.descent:
         res["descent"] = {}
         for c in names:
@@ -514,6 +555,13 @@ def main(argv=None) -> None:
         h, p = r["held_out"], r["product"]
         print(f"chosen on {','.join(r['chosen_on'])} (+ the others): {r['weights']}; held-out half NN {h['nn']:.3f} "
               f"FT {h['ft']:.3f} EER {h['eer']:.3f}, product NN {p['nn']:.3f} FT {p['ft']:.3f} EER {p['eer']:.3f}")
+    for r in res.get("size_factor", {}).get("whole", []):
+        per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
+        print(f"J {r['pooled']['J']:.4f}  product x R^{r['d']:g}  {per}")
+    for r in res.get("size_factor", {}).get("split", []):
+        h, p = r["held_out"], r["product"]
+        print(f"chosen on {','.join(r['chosen_on'])} (+ the others): d {r['d']:g}; held-out half NN {h['nn']:.3f} "
+              f"FT {h['ft']:.3f} EER {h['eer']:.3f}, d 0 NN {p['nn']:.3f} FT {p['ft']:.3f} EER {p['eer']:.3f}")
     for r in res["pair_local"][:12]:
         per = "  ".join(f"{c} NN {r[c]['nn']:.3f} FT {r[c]['ft']:.3f} EER {r[c]['eer']:.3f}" for c in mats)
         print(f"J {r['pooled']['J']:.4f}  {r['signature'] or '-':<10} {r['statistic']:<8} w {r['w']:.2f}  {per}")
