@@ -608,6 +608,39 @@ def test_size_factor_is_chosen_where_the_size_separates_the_classes():
         assert r["product"]["eer"] > 0
 
 
+def test_scales_study_scores_each_scale_and_judges_it_on_held_out_classes():
+    """recognition_scales: the grid's weights are non-negative and sum to 1; the combined ranking
+    with G measured at half the time is gromov's; where the distortion at twice the time alone
+    separates the classes, the splits choose it and score the held-out half perfectly."""
+    from gromov.spectrum import combined
+
+    st = _module("recognition_scales")
+    w = st.grid_weights()
+    assert len(w) == 286 and all(min(x) >= 0 and abs(sum(x) - 1) < 1e-9 for x in w)
+    rng = np.random.default_rng(5)
+    labels = np.repeat(np.arange(4), 3)
+    same = labels[:, None] == labels[None]
+
+    def mats():
+        def sym(x):
+            x = x + x.T
+            np.fill_diagonal(x, 0.0)
+            return x
+        m = {k: sym(rng.uniform(1, 1e3, (12, 12))) for k in ("S", "G", "H", "L@1", "L@4")}
+        m["L@0.5"] = m["G"]
+        m["L@2"] = sym(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))
+        return m
+
+    m = {"a": mats(), "b": mats()}
+    labs = {"a": labels, "b": labels}
+    np.testing.assert_array_equal(st.product(m["a"]), combined(m["a"]["S"], m["a"]["G"], signature=m["a"]["H"]))
+    one = [(f"G at {s:g}", lambda x, s=s: st.product(x, s)) for s in st.SCALES]
+    alone = one + [("L@2 alone", lambda x: x["L@2"])]
+    for r in st.split(m, labs, "a", alone, trials=3):
+        assert r["chosen"] == "L@2 alone" and r["held_out"]["nn"] == 1.0 and r["held_out"]["eer"] == 0.0
+        assert r["as_it_is"]["eer"] > 0
+
+
 def test_pointwise_study_distortion_reads_the_sample_pairs():
     """The signature distortion of the pointwise study: zero for a pair whose signatures agree at
     every sample pair, the RMS of the differences otherwise; trimming keeps the best-fitting
