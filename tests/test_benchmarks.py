@@ -526,6 +526,13 @@ def test_one_query_descent_read_off_the_complete_matrix():
     assert down["pairs_per_query"] > 2 and down["top_equal_list"] >= first["top_equal_list"]
 
 
+def _symmetric(x):
+    """``x + x.T`` with a zero diagonal: a distance-like matrix for the studies' scorers."""
+    x = x + x.T
+    np.fill_diagonal(x, 0.0)
+    return x
+
+
 def test_signature_weighted_rankings_find_the_statistic_that_separates_the_classes():
     """The S^a G^b GH^c H^d grid: the weights sum to 1, one row is the product's, the rows are
     ordered by J, and where H alone separates the classes (the others are noise) H alone has
@@ -537,14 +544,9 @@ def test_signature_weighted_rankings_find_the_statistic_that_separates_the_class
     labels = np.repeat(np.arange(3), 4)
     same = labels[:, None] == labels[None]
 
-    def sym(x):
-        x = x + x.T
-        np.fill_diagonal(x, 0.0)
-        return x
-
-    mats = {"a": {"spectral": sym(rng.uniform(1, 1e3, (12, 12))), "trimmed": sym(rng.uniform(1, 1e3, (12, 12))),
-                  "gh": sym(rng.uniform(1, 1e3, (12, 12))),
-                  "signature": sym(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))}}
+    mats = {"a": {"spectral": _symmetric(rng.uniform(1, 1e3, (12, 12))), "trimmed": _symmetric(rng.uniform(1, 1e3, (12, 12))),
+                  "gh": _symmetric(rng.uniform(1, 1e3, (12, 12))),
+                  "signature": _symmetric(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))}}
     rows = st.signature_local(mats, {"a": labels})
     assert all(abs(sum(r["weights"].values()) - 1.0) < 1e-9 and r["weights"]["signature"] > 0 for r in rows)
     assert [r["weights"]["signature"] for r in rows if r["product"]] == [SIGNATURE_WEIGHT]
@@ -563,13 +565,9 @@ def test_signature_weights_are_judged_on_the_classes_they_were_not_chosen_on():
     same = labels[:, None] == labels[None]
 
     def mats():
-        def sym(x):
-            x = x + x.T
-            np.fill_diagonal(x, 0.0)
-            return x
-        return {"spectral": sym(rng.uniform(1, 1e3, (12, 12))), "trimmed": sym(rng.uniform(1, 1e3, (12, 12))),
-                "gh": sym(rng.uniform(1, 1e3, (12, 12))),
-                "signature": sym(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))}
+        return {"spectral": _symmetric(rng.uniform(1, 1e3, (12, 12))), "trimmed": _symmetric(rng.uniform(1, 1e3, (12, 12))),
+                "gh": _symmetric(rng.uniform(1, 1e3, (12, 12))),
+                "signature": _symmetric(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))}
 
     out = st.signature_split({"a": mats(), "b": mats()}, {"a": labels, "b": labels}, "a", trials=3)
     assert len(out) == 3
@@ -587,13 +585,9 @@ def test_size_factor_is_chosen_where_the_size_separates_the_classes():
     labels = np.repeat(np.arange(4), 3)
 
     def mats():
-        def sym(x):
-            x = x + x.T
-            np.fill_diagonal(x, 0.0)
-            return x
         area = np.log(10.0 ** labels * rng.uniform(1.0, 1.05, 12))
-        return {"spectral": sym(rng.uniform(1, 2, (12, 12))), "trimmed": sym(rng.uniform(1, 2, (12, 12))),
-                "gh": sym(rng.uniform(1, 2, (12, 12))), "signature": sym(rng.uniform(1, 2, (12, 12))),
+        return {"spectral": _symmetric(rng.uniform(1, 2, (12, 12))), "trimmed": _symmetric(rng.uniform(1, 2, (12, 12))),
+                "gh": _symmetric(rng.uniform(1, 2, (12, 12))), "signature": _symmetric(rng.uniform(1, 2, (12, 12))),
                 "size": np.exp(0.5 * np.abs(area[:, None] - area[None, :]))}
 
     m = {"a": mats(), "b": mats()}
@@ -622,13 +616,9 @@ def test_scales_study_scores_each_scale_and_judges_it_on_held_out_classes():
     same = labels[:, None] == labels[None]
 
     def mats():
-        def sym(x):
-            x = x + x.T
-            np.fill_diagonal(x, 0.0)
-            return x
-        m = {k: sym(rng.uniform(1, 1e3, (12, 12))) for k in ("S", "G", "H", "L@1", "L@4")}
+        m = {k: _symmetric(rng.uniform(1, 1e3, (12, 12))) for k in ("S", "G", "H", "L@1", "L@4")}
         m["L@0.5"] = m["G"]
-        m["L@2"] = sym(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))
+        m["L@2"] = _symmetric(np.where(same, 0.5, 2.0) * rng.uniform(1, 1.2, (12, 12)))
         return m
 
     m = {"a": mats(), "b": mats()}

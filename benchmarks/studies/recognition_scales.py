@@ -45,7 +45,7 @@ sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
 from bench_recognition import GROMOV_METRIC, class_subset, collection, gromov_source, scores  # noqa: E402
-from recognition_two_stage import _scored  # noqa: E402
+from recognition_two_stage import _scored, class_splits  # noqa: E402
 
 #: The diffusion times, over the match's, at which each correspondence is measured.
 SCALES = (0.5, 1.0, 2.0, 4.0)
@@ -162,21 +162,11 @@ def split(mats: dict, labs: dict, collection_name: str, candidates: list, trials
     """``candidates``: (name, function of one collection's matrices); in each of ``trials`` seeded
     splits of ``collection_name``'s classes into halves, the candidate of lowest J on the other
     collections and one half, scored on the other half beside the combined ranking as it is."""
-    labels = np.asarray(labs[collection_name])
-    classes = sorted(set(labels.tolist()))
-    rng = np.random.default_rng(seed)
     out = []
-    for _ in range(trials):
-        train = sorted(rng.permutation(classes)[: len(classes) // 2].tolist())
-        a, b = np.flatnonzero(np.isin(labels, train)), np.flatnonzero(~np.isin(labels, train))
-        fit = {c: m for c, m in mats.items() if c != collection_name}
-        fit_labs = {c: labs[c] for c in fit}
-        fit[collection_name] = {k: (v[np.ix_(a, a)] if np.ndim(v) == 2 else v) for k, v in mats[collection_name].items()}
-        fit_labs[collection_name] = labels[a]
+    for train, fit, fit_labs, held, held_labels in class_splits(mats, labs, collection_name, trials, seed):
         name, f = min(candidates, key=lambda c: _scored({k: c[1](m) for k, m in fit.items()}, fit_labs)["pooled"]["J"])
-        held = {k: (v[np.ix_(b, b)] if np.ndim(v) == 2 else v) for k, v in mats[collection_name].items()}
-        out.append({"chosen_on": train, "chosen": name, "held_out": scores(f(held), labels[b]),
-                    "as_it_is": scores(product(held), labels[b])})
+        out.append({"chosen_on": train, "chosen": name, "held_out": scores(f(held), held_labels),
+                    "as_it_is": scores(product(held), held_labels)})
     return out
 
 

@@ -368,23 +368,35 @@ def signature_split(mats: dict, labs: dict, collection: str, trials: int = 6, se
     ``trials`` seeded splits of ``collection``'s classes into halves, the weights of lowest J on
     the other collections and one half, scored on the other half beside the product's weights."""
     product, grid = signature_weights()
+    out = []
+    for train, fit, fit_labs, held, held_labels in class_splits(mats, labs, collection, trials, seed):
+        best = min(grid, key=lambda w: _scored({c: _weighted(m, w) for c, m in fit.items()}, fit_labs)["pooled"]["J"])
+        out.append({"chosen_on": train, "weights": _named(best),
+                    "held_out": scores(_weighted(held, best), held_labels),
+                    "product": scores(_weighted(held, product), held_labels)})
+    return out
+
+
+def _among(m: dict, idx: np.ndarray) -> dict:
+    """One collection's matrices restricted to the shapes ``idx`` (other entries as they are)."""
+    return {k: (v[np.ix_(idx, idx)] if np.ndim(v) == 2 else v) for k, v in m.items()}
+
+
+def class_splits(mats: dict, labs: dict, collection: str, trials: int = 6, seed: int = 0):
+    """``trials`` seeded splits of ``collection``'s classes into halves: for each,
+    ``(chosen_on, fit, fit_labs, held, held_labels)``: the classes of the first half, the
+    matrices and labels a choice is made on (the other collections and that half), and the other
+    half's matrices and labels, on which the choice is judged."""
     labels = np.asarray(labs[collection])
     classes = sorted(set(labels.tolist()))
     rng = np.random.default_rng(seed)
-    out = []
     for _ in range(trials):
         train = sorted(rng.permutation(classes)[: len(classes) // 2].tolist())
         a, b = np.flatnonzero(np.isin(labels, train)), np.flatnonzero(~np.isin(labels, train))
         fit = {c: m for c, m in mats.items() if c != collection}
         fit_labs = {c: labs[c] for c in fit}
-        fit[collection] = {k: v[np.ix_(a, a)] for k, v in mats[collection].items()}
-        fit_labs[collection] = labels[a]
-        best = min(grid, key=lambda w: _scored({c: _weighted(m, w) for c, m in fit.items()}, fit_labs)["pooled"]["J"])
-        held = {k: v[np.ix_(b, b)] for k, v in mats[collection].items()}
-        out.append({"chosen_on": train, "weights": _named(best),
-                    "held_out": scores(_weighted(held, best), labels[b]),
-                    "product": scores(_weighted(held, product), labels[b])})
-    return out
+        fit[collection], fit_labs[collection] = _among(mats[collection], a), labels[a]
+        yield train, fit, fit_labs, _among(mats[collection], b), labels[b]
 
 
 #: The exponents d of the size factor R^d (:func:`size_factor`).
@@ -403,22 +415,12 @@ def size_factor(mats: dict, labs: dict, collection: str, trials: int = 6, seed: 
         return _weighted(m, product) * m["size"] ** d
 
     whole = [{"d": d, **_scored({c: ranked(m, d) for c, m in mats.items()}, labs)} for d in SIZE_EXPONENTS]
-    labels = np.asarray(labs[collection])
-    classes = sorted(set(labels.tolist()))
-    rng = np.random.default_rng(seed)
     split = []
-    for _ in range(trials):
-        train = sorted(rng.permutation(classes)[: len(classes) // 2].tolist())
-        a, b = np.flatnonzero(np.isin(labels, train)), np.flatnonzero(~np.isin(labels, train))
-        fit = {c: m for c, m in mats.items() if c != collection}
-        fit_labs = {c: labs[c] for c in fit}
-        fit[collection] = {k: v[np.ix_(a, a)] for k, v in mats[collection].items()}
-        fit_labs[collection] = labels[a]
+    for train, fit, fit_labs, held, held_labels in class_splits(mats, labs, collection, trials, seed):
         best = min(SIZE_EXPONENTS, key=lambda d: _scored({c: ranked(m, d) for c, m in fit.items()},
                                                           fit_labs)["pooled"]["J"])
-        held = {k: v[np.ix_(b, b)] for k, v in mats[collection].items()}
-        split.append({"chosen_on": train, "d": best, "held_out": scores(ranked(held, best), labels[b]),
-                      "product": scores(ranked(held, 0.0), labels[b])})
+        split.append({"chosen_on": train, "d": best, "held_out": scores(ranked(held, best), held_labels),
+                      "product": scores(ranked(held, 0.0), held_labels)})
     return {"whole": whole, "split": split}
 
 
