@@ -64,7 +64,8 @@ def shape_dna(eigenvalues: np.ndarray, area: float, k: int = SPECTRUM_K) -> np.n
 def _eigenpairs(shape, k: int, what: str):
     """``(eigenvalues >= 0, eigenvectors, area)``: the ``k`` (plus one per component) lowest
     eigenpairs of a shape's working cotangent Laplacian with lumped masses (a point cloud's
-    robust Laplacian), by shift-invert Lanczos as the dense maps compute them."""
+    robust Laplacian), by :func:`gromov._eigen.shift_invert_eigsh`, as the heat metric and the
+    dense maps compute theirs."""
     from ._eigen import shift_invert_eigsh
     from .metrics.diffusion import POINT_CLOUD_NEIGHBORS, _laplacian
 
