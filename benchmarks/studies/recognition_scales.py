@@ -44,6 +44,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
+from _common import write_results  # noqa: E402
 from bench_recognition import GROMOV_METRIC, class_subset, collection, gromov_source, scores  # noqa: E402
 from recognition_two_stage import _scored, class_splits  # noqa: E402
 
@@ -67,7 +68,7 @@ def _wrap() -> None:
     def ranking(sx, sy, P, Q, fit, dx, dy, diam, discrete, rank_tau_scale, rank_residual):
         value = original(sx, sy, P, Q, fit, dx, dy, diam, discrete, rank_tau_scale, rank_residual)
         if _OUT is not None and id(sx) in _INDEX and id(sy) in _INDEX:
-            row = {"i": _INDEX[id(sx)], "j": _INDEX[id(sy)], "ranked": float(value)}
+            row = {"i": _INDEX[id(sx)], "j": _INDEX[id(sy)]}
             for s in SCALES:
                 row[f"L@{s:g}"] = float(original(sx, sy, P, Q, fit, dx, dy, diam, discrete, s, "log"))
             with open(os.path.join(_OUT, f"{os.getpid()}.jsonl"), "a") as fh:
@@ -193,15 +194,11 @@ def main(argv=None) -> None:
                          labs, scale=s))
     for s in SCALES:
         rows.append(_row(f"L@{s:g} alone", {c: m[f"L@{s:g}"] for c, m in mats.items()}, labs, scale=s))
-    grid = []
-    for s in SCALES[1:]:
-        for w in grid_weights():
-            grid.append(_row(f"S^{w[0]:g} L@{s:g}^{w[1]:g} H^{w[2]:g} G^{w[3]:g}",
-                             {c: weighted(m, s, w) for c, m in mats.items()}, labs, scale=s, weights=w))
-    grid.sort(key=lambda r: r["pooled"]["J"])
     one = [(f"combined, G at {s:g}", lambda m, s=s: product(m, s)) for s in SCALES]
-    many = [(f"S^{w[0]:g} L@{s:g}^{w[1]:g} H^{w[2]:g} G^{w[3]:g}", lambda m, s=s, w=w: weighted(m, s, w))
+    many = [(f"S^{w[0]:g} L@{s:g}^{w[1]:g} H^{w[2]:g} G^{w[3]:g}", s, w, lambda m, s=s, w=w: weighted(m, s, w))
             for s in SCALES[1:] for w in grid_weights()]
+    grid = sorted((_row(name, {c: f(m) for c, m in mats.items()}, labs, scale=s, weights=w) for name, s, w, f in many),
+                  key=lambda r: r["pooled"]["J"])
     given = list(argv if argv is not None else sys.argv[1:])
     source = gromov_source()
     if Path(source["path"]).is_relative_to(HERE.parents[1]):
@@ -214,8 +211,8 @@ def main(argv=None) -> None:
                        for c, m in mats.items()},
            "rows": rows, "grid": grid[:40],
            "split_setting": split(mats, labs, "watertight", one),
-           "split_grid": split(mats, labs, "watertight", many)}
-    Path(args.json).write_text(json.dumps(res, indent=1, default=float) + "\n")
+           "split_grid": split(mats, labs, "watertight", [(name, f) for name, _, _, f in many])}
+    write_results(args.json, json.loads(json.dumps(res, default=float)))
 
     def line(r):
         return f"J {r['pooled']['J']:.4f}  " + "  ".join(
