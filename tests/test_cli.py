@@ -155,6 +155,21 @@ def test_a_user_error_in_its_own_process(argv, message):
     _one_error_line(r.stderr, message)
 
 
+def test_a_reader_that_stops_early_ends_the_command_quietly(torus_file):
+    """``gromov info FILE | head -0``: stdout's reader is gone before anything is written; the
+    command stops with status 141 (128 + SIGPIPE) and no traceback."""
+    import os
+
+    r, w = os.pipe()
+    os.close(r)   # the reader has gone
+    try:
+        p = subprocess.run([sys.executable, "-m", "gromov", "info", str(torus_file)], stdout=w,
+                           stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(w)
+    assert p.returncode == 141 and "Traceback" not in p.stderr and "Error" not in p.stderr, p.stderr
+
+
 def test_demo_runs(capsys):
     assert main(["demo", "--samples", "5"]) == 0
     out = capsys.readouterr().out

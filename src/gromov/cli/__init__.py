@@ -2,7 +2,8 @@
 
 Thin: parses arguments, calls the library, prints. User errors (unreadable file, bad
 option values, a metric that cannot be computed) print one line ``gromov: error: ...``
-and exit with status 2; no traceback.
+and exit with status 2; no traceback. A reader of stdout that stops early (``| head``) ends
+the command quietly with status 141, as SIGPIPE would.
 
 One module per command family, each parser beside its command: :mod:`.distances` (``info``,
 ``distances``), :mod:`.match`, :mod:`.collection` (``index``, ``search``, ``pairwise``),
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import warnings
 
@@ -80,7 +82,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.func is not cmd_demo and not getattr(args, "quiet", False) and sys.stderr.isatty():
         note = _announce_compilation()   # on a terminal, like the progress bars
     try:
-        return args.func(args)
+        code = args.func(args)
+        sys.stdout.flush()   # a reader that went away (``| head``) shows here, where it is handled
+        return code
+    except BrokenPipeError:
+        # stdout's reader closed it: stop quietly, as a command stopped by SIGPIPE does, with
+        # stdout sent to the null device so that the flush at exit does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141   # 128 + SIGPIPE, the status a shell gives such a command
     except (GromovError, _UserError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"gromov: error: {exc}", file=sys.stderr)
         return 2
