@@ -98,14 +98,24 @@ def _stem(path) -> str:
     return base if dot and base and ext.lower() in FORMATS else name
 
 
-def _check_png(path: str, option: str) -> None:
+def _check_output(path: str, option: str, suffix: str, what: str) -> None:
+    """An output file's name, checked before any work: it ends in ``suffix``, is no folder, and
+    its folder exists."""
     p = Path(path)
-    if p.suffix.lower() != ".png":
-        raise _UserError(f"{option} writes a PNG image: give a file name ending in .png, got {path!r}")
+    if p.suffix.lower() != suffix:
+        raise _UserError(f"{option} writes {what}: give a file name ending in {suffix}, got {path!r}")
     if p.is_dir():
         raise _UserError(f"{option} {path} is a folder")
     if p.parent and not p.parent.exists():
-        raise _UserError(f"output folder {p.parent} does not exist")
+        raise _UserError(f"{option}: output folder {p.parent} does not exist")
+
+
+def _check_png(path: str, option: str) -> None:
+    _check_output(path, option, ".png", "a PNG image")
+
+
+def _check_npz(path: str, option: str) -> None:
+    _check_output(path, option, ".npz", "a NumPy archive")
 
 
 class _StoreWarnings(logging.Handler):

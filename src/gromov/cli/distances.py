@@ -14,7 +14,7 @@ import numpy as np
 from .._atomic import atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
 from ._args import _add_input_args, _add_metric_args, _metric_options, _positive_int
-from ._common import _UserError, _check_memory, _check_neighbors, _dumps, _load, _status
+from ._common import _UserError, _check_memory, _check_neighbors, _check_npz, _dumps, _load, _status
 
 
 def _progress(total: int, desc: str, quiet: bool):
@@ -67,6 +67,7 @@ def cmd_distances(args) -> int:
     from ..resolution import working_shape
     from ..sampling import farthest_point_sampling
 
+    _check_npz(args.out, "--out")
     shape = _load(args.mesh, args)
     _check_neighbors(args, [shape])
     t0 = time.perf_counter()
@@ -100,8 +101,6 @@ def cmd_distances(args) -> int:
                       f"the {args.metric} metric (parts of the working shape that no path joins); "
                       "they are written as inf", stacklevel=1)
     out = Path(args.out)
-    if out.parent and not out.parent.exists():
-        raise _UserError(f"output folder {out.parent} does not exist")
     atomic_savez_compressed(
         out, distances=np.asarray(dist, dtype=np.float64), samples=to_input(idx).astype(np.int64),
         working_vertices=idx.astype(np.int64), metric=args.metric,

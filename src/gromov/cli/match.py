@@ -11,7 +11,7 @@ from .._atomic import atomic_path, atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
 from ._args import (_add_input_args, _add_metric_args, _metric_options, _nonnegative_float, _norm_arg,
                     _positive_int)
-from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _close_store,
+from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_npz, _check_png, _close_store,
                       _dumps, _load, _open_store, _status)
 
 
@@ -62,7 +62,7 @@ def cmd_match(args) -> int:
         except ImportError:
             raise _UserError("--html needs plotly: pip install 'gromov[plot]'") from None
     if args.out:
-        _check_folder(args.out, "--out")
+        _check_npz(args.out, "--out")
     if args.plot:
         for path, s in zip((args.x, args.y), shapes):
             if not s.has_faces:
@@ -93,7 +93,7 @@ def cmd_match(args) -> int:
               solver=args.solver, seed=args.seed, orientation=args.orientation, dense=dense, search=search,
               partial=args.partial)
     if args.out:
-        atomic_savez_compressed(Path(args.out), **r.arrays())
+        atomic_savez_compressed(args.out, **r.arrays())
     if args.map:   # SHREC's exchange format: one 1-based vertex id of Y per vertex of X
         with atomic_path(args.map) as tmp:
             np.savetxt(tmp, r.x_to_y_dense_vertex + 1, fmt="%d")
