@@ -41,6 +41,8 @@ def cmd_perturb(args) -> int:
     from ..perturb import WELD_RESOLUTION, cut, holes, weld
 
     _check_options(args)
+    if Path(args.output).resolve() == Path(args.input).resolve():
+        raise _UserError(f"{args.output} is the input mesh: give the perturbed copy another name")
     shape = _load(args.input, args)
     if not isinstance(shape, Mesh):
         raise _UserError(f"{args.input}: perturbations need a triangle mesh, got a point cloud")
