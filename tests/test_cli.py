@@ -113,7 +113,7 @@ def test_distances_on_tosca_ids_are_input_vertices(data_dir, tmp_path):
         (["match", "{sphere}", "{sphere}", "--out", "{tmp}/m.txt"],
          "--out writes a NumPy archive: give a file name ending in .npz, got"),
         (["distances", "{sphere}", "--out", "{tmp}/d.txt"], "--out writes a NumPy archive"),
-        (["perturb", "holes", "{sphere}", "{tmp}/./s.off"], "is the input mesh"),
+        (["perturb", "holes", "{sphere}", "{tmp}/./s.off", "--count", "2"], "is the input mesh"),
         (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a"],
          "one non-empty label per file (2), got 1"),
         (["pairwise", "{sphere}", "{fixtures}/cube_quads.obj", "--labels", "a,b",
