@@ -152,7 +152,7 @@ def _add_metric_args(p: argparse.ArgumentParser, units_default: str | None = Non
     p.add_argument("--refine", type=int, choices=range(4), default=None, metavar="{0,1,2,3}",
                    help="geodesic fast marching: split every triangle into 4 this many times "
                         "before marching (~4^N times the work; about halves the error per level)")
-    p.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
+    p.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default=None,
                    help="diffusion kernel: the resolution-independent Laplace-Beltrami heat kernel "
                         "(default), the paper's connectivity kernel, a Gaussian k-NN kernel, or the "
                         "biharmonic distance (heat-kernel distances integrated over all times)")
@@ -164,17 +164,26 @@ def _add_metric_args(p: argparse.ArgumentParser, units_default: str | None = Non
     _add_heat_args(p, units_default)
 
 
+def _kernel(args) -> str:
+    """The diffusion kernel given, or the default: the heat kernel."""
+    return getattr(args, "kernel", None) or "heat"
+
+
 def _metric_options(args) -> dict:
-    if args.metric != "diffusion" and getattr(args, "fill_holes", None) is not None:
-        raise _UserError("--fill-holes applies to --metric diffusion")
-    if args.metric != "diffusion" and getattr(args, "units", None) is not None:
-        raise _UserError("--units applies to --metric diffusion")
+    """The metric's options from the command line; an option of another metric than the one
+    chosen is refused, not dropped."""
+    if args.metric != "diffusion":
+        for flag in ("--tau", "--units", "--fill-holes", "--kernel", "--steps"):
+            if getattr(args, flag[2:].replace("-", "_"), None) is not None:
+                raise _UserError(f"{flag} applies to --metric diffusion")
+    if args.metric != "geodesic" and args.geodesic_method is not None:
+        raise _UserError("--geodesic-method applies to --metric geodesic")
     refine = getattr(args, "refine", None) or None  # 0: the default, as if not given
     if refine is not None and (args.metric != "geodesic" or args.geodesic_method not in (None, "fmm")):
         raise _UserError("--refine applies to --metric geodesic with the fast marching (fmm)")
     neighbors = getattr(args, "neighbors", None)
     if neighbors is not None and not (args.metric == "geodesic" and args.geodesic_method in (None, "dijkstra")
-                                      or args.metric == "diffusion" and args.kernel in ("heat", "biharmonic")):
+                                      or args.metric == "diffusion" and _kernel(args) in ("heat", "biharmonic")):
         raise _UserError("--neighbors applies to point clouds with --metric geodesic (Dijkstra) or "
                          "--metric diffusion with --kernel heat or biharmonic")
     if args.metric == "geodesic":
@@ -194,19 +203,20 @@ def _metric_options(args) -> dict:
 
 def _diffusion_options(args) -> dict:
     """Options of the diffusion metric from ``--kernel``, ``--tau``, ``--steps``, ``--fill-holes``."""
-    opts = {"kernel": args.kernel}
+    kernel = _kernel(args)
+    opts = {"kernel": kernel}
     if args.tau is not None:
-        if args.kernel != "heat":
+        if kernel != "heat":
             raise _UserError("--tau is the heat kernel's diffusion time: use it with --kernel heat")
         opts["tau"] = args.tau
     units = getattr(args, "units", None)
     if units is not None:
-        if args.kernel != "heat":
+        if kernel != "heat":
             raise _UserError("--units applies to the heat kernel: use it with --kernel heat")
         opts["units"] = units
     steps = getattr(args, "steps", None)
     if steps is not None:
-        if args.kernel not in ("connectivity", "gaussian"):
+        if kernel not in ("connectivity", "gaussian"):
             raise _UserError("--steps is the graph kernels' number of diffusion steps: use it with "
                              "--kernel connectivity or gaussian")
         opts["m"] = steps
