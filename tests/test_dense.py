@@ -90,6 +90,29 @@ def test_transfer_keeps_constants_and_labels(torus_pair):
     np.testing.assert_allclose(g, f[perm], atol=0.02 * np.ptp(f))
 
 
+def test_transfer_marks_target_vertices_without_an_image(torus_pair):
+    """A target vertex without an image (dropped by loading, or outside a partial match's
+    region) gets NaN, -1 for signed integer labels (0 is a label), or the ``fill`` given."""
+    import dataclasses
+
+    x, y, _, r = torus_pair
+    gone = np.array([0, 5])
+    v, f, b = r.y_to_x_dense_vertex.copy(), r.y_to_x_dense_face.copy(), r.y_to_x_dense_bary.copy()
+    v[gone], f[gone], b[gone] = -1, -1, np.nan
+    s = dataclasses.replace(r, y_to_x_dense_vertex=v, y_to_x_dense_face=f, y_to_x_dense_bary=b)
+    labels = np.arange(x.n_vertices) % 7
+    moved = s.transfer(labels)
+    kept = np.setdiff1d(np.arange(y.n_vertices), gone)
+    assert moved.dtype == labels.dtype and (moved[gone] == -1).all()
+    np.testing.assert_array_equal(moved[kept], r.transfer(labels)[kept])
+    assert np.isnan(s.transfer(labels.astype(float))[gone]).all()
+    assert np.isnan(s.transfer(labels, method="barycentric")[gone]).all()
+    assert (s.transfer(labels, fill=99)[gone] == 99).all()
+    with pytest.raises(ValueError, match="give fill="):
+        s.transfer(labels > 3)
+    assert not s.transfer(labels > 3, fill=False)[gone].any()
+
+
 def test_transfer_errors(torus_pair):
     x, _, _, r = torus_pair
     with pytest.raises(ValueError, match="one row per vertex"):

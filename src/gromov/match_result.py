@@ -189,7 +189,8 @@ class MatchResult:
             out["y_covered"], out["x_weight"] = self.y_covered, self.x_weight
         return out
 
-    def transfer(self, values, *, method: str = "nearest", direction: str = "x_to_y") -> np.ndarray:
+    def transfer(self, values, *, method: str = "nearest", direction: str = "x_to_y",
+                 fill=None) -> np.ndarray:
         r"""Carry a per-vertex function of X to Y (or of Y to X) through the dense map.
 
         ``method="nearest"``: each vertex of the target takes the value at the vertex nearest
@@ -206,11 +207,15 @@ class MatchResult:
         method : {"nearest", "barycentric"}
         direction : {"x_to_y", "y_to_x"}
             Which way the function goes.
+        fill : scalar, optional
+            The rows of target vertices without an image: those that loading dropped, and a
+            partial match's whole outside the covered region. Default: NaN for floating-point
+            results, -1 for signed integers; other values (booleans, unsigned integers, text)
+            need ``fill`` where such rows exist.
 
         Returns
         -------
         ndarray (n_Y, ...) or (n_X, ...)
-            Rows of target vertices that loading dropped are NaN (0 for integer values).
         """
         if not self.has_dense:
             raise ValueError("transfer needs the dense maps: match(..., dense=True)")
@@ -240,5 +245,8 @@ class MatchResult:
             w = np.nan_to_num(bary).reshape(bary.shape + (1,) * (v.ndim - 1))
             out = (v[corners] * w).sum(axis=1)
         if not ok.all():
-            out[~ok] = np.nan if out.dtype.kind in "fc" else 0
+            if fill is None and out.dtype.kind not in "fci":
+                raise ValueError(f"{int((~ok).sum())} vertices of the target have no image, and values of "
+                                 f"dtype {out.dtype} have no default for them: give fill=")
+            out[~ok] = fill if fill is not None else (np.nan if out.dtype.kind in "fc" else -1)
         return out

@@ -193,7 +193,8 @@ def _match_parser(sub) -> None:
                         "'--dense placed': without a refinement")
     q.add_argument("--map", default=None, metavar="FILE.txt",
                    help="write the dense X -> Y vertex map: one 1-based vertex id of Y per vertex "
-                        "of X, one per line (SHREC's format; implies --dense)")
+                        "of X, one per line (SHREC's format; 0 for a vertex without an image; "
+                        "implies --dense)")
     q.add_argument("--plot", default=None, metavar="FILE.png",
                    help="draw the correspondence: the cells of X's samples and, in the same "
                         "colours, the cells around their images on Y; with --dense, X's "
