@@ -192,6 +192,15 @@ def test_pairwise_ranks_by_the_combined_distance(tmp_path, capsys):
     assert two["candidates"] == 1 and two["pairs_skipped"] >= 2
     assert main([*base, "--candidates", "1", "-k", "2"]) == 2
     assert "must be at least -k" in capsys.readouterr().err
+    # labels: the EER needs every pair; a search whose candidates met every pair has them all
+    lab = ["--labels", "a,a,b,b", "--json"]
+    assert main([*base, *lab]) == 0
+    whole = json.loads(capsys.readouterr().out)
+    assert main([*base, *lab, "--candidates", "3"]) == 0
+    met = json.loads(capsys.readouterr().out)
+    assert met["pairs_skipped"] == 0 and whole["eer"] is not None and met["eer"] == whole["eer"]
+    assert main([*base, *lab, "--candidates", "1"]) == 0
+    assert json.loads(capsys.readouterr().out)["eer"] is None
 
 
 def test_nearest_ranks_by_the_combined_distance_and_searches_in_two_stages():

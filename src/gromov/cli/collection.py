@@ -340,8 +340,9 @@ def _add_recognition(result: dict, args, r, D: np.ndarray, nearest: np.ndarray, 
     same = (lab[:, None] == lab[None, :])[np.triu_indices(n, 1)]
     result.update(eer=None, eer_gh=None, eer_trimmed=None, errors_at_eer=None, eer_local=None,
                   local_scaling_k=None, errors_at_eer_local=None, eer_diffusion=None, diffusion_rerank_k=None)
-    if same.any() and not same.all() and args.k is None and args.candidates is None:   # else all one
-        # class, or every shape its own, or not every pair matched: no EER
+    every_pair = args.k is None and args.candidates is None or not r.skipped
+    if same.any() and not same.all() and every_pair:   # else all one class, or every shape its
+        # own, or not every pair matched (a search that met every pair scores as the full matrix): no EER
         curves = {k: roc(r.ranked(k), lab) for k in ("trimmed", "gh", args.rank_by)}
         local, scaled, k_used = local_roc(D, lab, k_local)   # warns if k >= the smallest class
         result.update(eer=curves[args.rank_by].eer, eer_gh=curves["gh"].eer,
