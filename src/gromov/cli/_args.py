@@ -32,6 +32,16 @@ def _nonnegative_int(text: str) -> int:
     return _int_at_least(text, 0, "an integer >= 0")
 
 
+def _sample_count(text: str) -> int:
+    """Samples per shape of a match: a correspondence needs three."""
+    return _int_at_least(text, 3, "an integer >= 3")
+
+
+def _working_size(text: str) -> int:
+    """Vertices of a working mesh: a tetrahedron's four at least."""
+    return _int_at_least(text, 4, "an integer >= 4")
+
+
 def _nonnegative_float(text: str) -> float:
     try:
         v = float(text)

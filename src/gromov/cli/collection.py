@@ -16,7 +16,7 @@ from .._defaults import (DEFAULT_RESOLUTION, DIFFUSION_RERANK_K, DIFFUSION_RERAN
                          RANK_RESIDUALS, RANK_TAU_SCALE, TRIANGLE_SLACK)
 from ..errors import GromovError
 from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
-                    _positive_float, _positive_int, _rank_tau_scale)
+                    _nonnegative_int, _positive_float, _positive_int, _rank_tau_scale, _sample_count, _working_size)
 from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _dumps, _load,
                       _stem, _store_of)
 
@@ -80,7 +80,7 @@ def _index_parser(sub) -> None:
                    help="the store's folder (created if missing): catalogue.sqlite and one .npz "
                         "per shape and set of options")
     _add_metric_args(q)
-    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+    q.add_argument("--resolution", type=_working_size, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
 
     q.add_argument("--rank-tau-scale", type=_rank_tau_scale, default=RANK_TAU_SCALE, metavar="S",
@@ -137,10 +137,10 @@ def _search_parser(sub) -> None:
     q.add_argument("--store", required=True, metavar="DIR", help="a shape store made by gromov index")
     q.add_argument("-k", type=_positive_int, default=5, help="neighbours to return (default 5)")
     _add_metric_args(q)
-    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+    q.add_argument("--resolution", type=_working_size, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count the store was indexed with (default {DEFAULT_RESOLUTION})")
-    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--samples", type=_sample_count, default=100, help="samples per shape (default 100)")
+    q.add_argument("--seed", type=_nonnegative_int, default=0)
     q.add_argument("--rank-by", choices=("trimmed", "gh", "combined"), default="trimmed",
                    help="rank by the trimmed distortion of each pair's correspondence (default, as "
                         "pairwise), by the GH estimate, or by the trimmed distortion, the spectral "
@@ -546,10 +546,10 @@ def _pairwise_parser(sub) -> None:
                                         "shapes; nearest neighbours, EER and an MDS map")
     q.add_argument("files", nargs="+", metavar="FILE", help="meshes (two or more)")
     _add_metric_args(q)
-    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
-    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+    q.add_argument("--samples", type=_sample_count, default=100, help="samples per shape (default 100)")
+    q.add_argument("--resolution", type=_working_size, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--seed", type=_nonnegative_int, default=0)
     q.add_argument("--strict", action="store_true",
                    help="exit with status 1 when a shape cannot be used (by default it is named "
                         "with its reason, left out, and the others are matched)")

@@ -13,7 +13,7 @@ import numpy as np
 
 from .._atomic import atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
-from ._args import _add_input_args, _add_metric_args, _metric_options, _positive_int
+from ._args import _add_input_args, _add_metric_args, _metric_options, _nonnegative_int, _positive_int, _working_size
 from ._common import _UserError, _check_memory, _check_neighbors, _check_npz, _dumps, _load, _status
 
 
@@ -117,12 +117,12 @@ def _distances_parser(sub) -> None:
     q = sub.add_parser("distances", help="distance matrix between farthest point samples")
     q.add_argument("mesh")
     _add_metric_args(q)
-    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+    q.add_argument("--resolution", type=_working_size, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION}; meshes "
                         "with fewer vertices are used as they are)")
     q.add_argument("--samples", type=_positive_int, default=None,
                    help="number of farthest point samples (default: all working vertices)")
-    q.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
+    q.add_argument("--seed", type=_nonnegative_int, default=0, help="seed of the first sample (default 0)")
     q.add_argument("--out", required=True, help="output .npz with 'distances' (K,K) and 'samples' (K,)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     _add_input_args(q)

@@ -9,8 +9,8 @@ import numpy as np
 
 from .._atomic import atomic_path, atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
-from ._args import (_add_input_args, _add_metric_args, _metric_options, _nonnegative_float, _norm_arg,
-                    _positive_int)
+from ._args import (_add_input_args, _add_metric_args, _metric_options, _nonnegative_float,
+                    _nonnegative_int, _norm_arg, _positive_int, _sample_count, _working_size)
 from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_npz, _check_png, _close_store,
                       _dumps, _load, _open_store, _status)
 
@@ -165,11 +165,11 @@ def _match_parser(sub) -> None:
     for action in q._actions:   # with --partial the metric defaults to geodesic
         if action.dest == "metric":
             action.default, action.help = None, "distance on the surface (default: diffusion; with --partial geodesic)"
-    q.add_argument("--samples", type=_positive_int, default=100, help="samples per shape (default 100)")
+    q.add_argument("--samples", type=_sample_count, default=100, help="samples per shape (default 100)")
     q.add_argument("--norm", type=_norm_arg, default="l2", help="l2 (default), linf or p:VALUE")
     q.add_argument("--solver", choices=("gmds", "gw"), default="gmds",
                    help="symmetric GMDS (default) or Gromov-Wasserstein (POT) on the same samples")
-    q.add_argument("--resolution", type=_positive_int, default=DEFAULT_RESOLUTION,
+    q.add_argument("--resolution", type=_working_size, default=DEFAULT_RESOLUTION,
                    help=f"working mesh vertex count (default {DEFAULT_RESOLUTION})")
     q.add_argument("--search-vertices", type=_positive_int, default=None, metavar="K",
                    help="faster, less reliable on welded shapes: run GMDS's initial search on K "
@@ -181,7 +181,7 @@ def _match_parser(sub) -> None:
     q.add_argument("--signature-weight", type=_nonnegative_float, default=None, metavar="W",
                    help="weight of the distance signatures in the extra coarse stages of GMDS's "
                         "initial search (default: gromov.match's; 0: distances only)")
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--seed", type=_nonnegative_int, default=0)
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.add_argument("--out", default=None, help="write the correspondences to this .npz")
     q.add_argument("--dense", nargs="?", const="input", choices=("input", "zoomout", "placed"), default=None,

@@ -113,7 +113,7 @@ def _perturb_parser(sub) -> None:
                         f"number of patches (default {CUT_PATCHES})")
     q.add_argument("--radius", type=float, default=None,
                    help="weld: search radius for close pairs; holes: geodesic radius (defaults in the docs)")
-    q.add_argument("--seed", type=int, default=0,
+    q.add_argument("--seed", type=_nonnegative_int, default=0,
                    help="seeds where the welds, the holes or the cut go (default 0)")
     q.add_argument("--join", choices=WELD_JOINS, default=None,
                    help="weld: join the two places by a short handle (tube, default: the mesh "

@@ -11,7 +11,8 @@ import numpy as np
 
 from .._defaults import LOCAL_SCALING_K, WELD_JOINS
 from .._version import __version__
-from ._args import _add_heat_args, _add_rank_args, _classes, _diffusion_options, _positive_int
+from ._args import (_add_heat_args, _add_rank_args, _classes, _diffusion_options, _nonnegative_int, _positive_int,
+                    _sample_count)
 from ._common import _UserError, _close_store, _open_store
 
 
@@ -101,7 +102,7 @@ def _reproduce_parser(sub) -> None:
     q.add_argument("--quick", action="store_true", help="a smaller run (fewer shapes and samples)")
     q.add_argument("--jobs", type=_positive_int, default=None,
                    help="worker processes (default: the CPUs available)")
-    q.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
+    q.add_argument("--seed", type=_nonnegative_int, default=0, help="sampling seed (default 0)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     q.add_argument("--kernel", choices=("heat", "connectivity", "gaussian", "biharmonic"), default="heat",
                    help="diffusion metric: heat kernel (default), the paper's connectivity-kernel graph "
@@ -175,6 +176,6 @@ def cmd_demo(args) -> int:
 
 def _demo_parser(sub) -> None:
     q = sub.add_parser("demo", help="distances and samples on a built-in shape")
-    q.add_argument("--samples", type=_positive_int, default=12)
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--samples", type=_sample_count, default=12)
+    q.add_argument("--seed", type=_nonnegative_int, default=0)
     q.set_defaults(func=cmd_demo)
