@@ -98,6 +98,11 @@ def _stem(path) -> str:
     return base if dot and base and ext.lower() in FORMATS else name
 
 
+def _count(n: int, noun: str) -> str:
+    """``"1 pair"``, ``"3 pairs"``: a count and its noun, plural but for one."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
+
+
 def _check_output(path: str, option: str, suffix: str, what: str) -> None:
     """An output file's name, checked before any work: it ends in ``suffix``, is no folder, and
     its folder exists."""

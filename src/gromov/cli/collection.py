@@ -17,7 +17,7 @@ from .._defaults import (DEFAULT_RESOLUTION, DIFFUSION_RERANK_K, DIFFUSION_RERAN
 from ..errors import GromovError
 from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
                     _nonnegative_int, _positive_float, _positive_int, _rank_tau_scale, _sample_count, _working_size)
-from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _dumps, _load,
+from ._common import (_UserError, _check_memory, _count, _check_neighbors, _check_pieces, _check_png, _dumps, _load,
                       _stem, _store_of)
 
 
@@ -403,7 +403,7 @@ def _print_pairwise(args, r, result: dict, nearest: np.ndarray, store) -> None:
     elif args.k is not None:
         pairs = f"{n * (n - 1) // 2 - r.skipped} of {n * (n - 1) // 2} pairs matched (each shape's {args.k} nearest)"
     else:
-        pairs = f"{n * (n - 1) // 2} pairs"
+        pairs = _count(n * (n - 1) // 2, "pair")
     left_out = f" ({len(unusable)} left out: see above)" if unusable else ""
     print(f"{n} shapes{left_out}, {pairs}, {args.metric} metric, {args.samples} samples per "
           f"shape, {result['seconds']:.1f} s; relative GH distance (÷ the larger diameter); nearest by {what}")

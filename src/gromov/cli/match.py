@@ -11,7 +11,7 @@ from .._atomic import atomic_path, atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
 from ._args import (_add_input_args, _add_metric_args, _metric_options, _nonnegative_float,
                     _nonnegative_int, _norm_arg, _positive_int, _sample_count, _working_size)
-from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_npz, _check_png, _close_store,
+from ._common import (_UserError, _check_memory, _count, _check_neighbors, _check_pieces, _check_npz, _check_png, _close_store,
                       _dumps, _load, _open_store, _status)
 
 
@@ -115,10 +115,11 @@ def cmd_match(args) -> int:
               f"({r.norm} norm, {r.relative_distance:.4%} of the diameter), {args.metric} metric, {r.solver}, "
               f"{r.n_samples} samples per shape")
         if all(s.has_faces for s in shapes):
-            how = f"{r.n_iter} iterations, {'converged' if r.converged else 'not converged'}"
+            how = f"{_count(r.n_iter, 'iteration')}, {'converged' if r.converged else 'not converged'}"
         else:
             how = "images at points (a point cloud: no GMDS refinement inside triangles)"
-        print(f"  distortion: {r.norm} {r.distortion:.6g}, rms {r.distortion_l2:.6g}, "
+        rms = "" if r.norm == "l2" else f", rms {r.distortion_l2:.6g}"   # l2 is the rms
+        print(f"  distortion: {r.norm} {r.distortion:.6g}{rms}, "
               f"max {r.distortion_linf:.6g}, rms of the best-fitting 80% of pairs "
               f"{r.distortion_trimmed:.6g}; {how}, {r.seconds:.2f} s")
         lo, hi = r.gh_interval
@@ -145,7 +146,7 @@ def _print_partial(r, args, dense, store, stored) -> None:
           f"of the diameter of {args.y}), {args.metric} metric, {r.n_samples} samples of the part")
     print(f"  covered region: {r.covered_fraction:.1%} of the area of {args.y} "
           f"({int(r.y_covered.sum())} of its vertices); weighted rms distortion {r.distortion_l2:.6g}, "
-          f"max {r.distortion_linf:.6g}; {r.n_iter} iterations, "
+          f"max {r.distortion_linf:.6g}; {_count(r.n_iter, 'iteration')}, "
           f"{'converged' if r.converged else 'not converged'}, {r.seconds:.2f} s")
     if dense:
         print(f"  dense map: {len(r.x_to_y_dense_vertex)} vertices of the part on the whole")
