@@ -191,6 +191,13 @@ def test_trimmed_extension_finds_the_isometry():
             match(x, y, "geodesic", n_samples=20, resolution=None, search=SearchOptions(extend_keep=bad))
 
 
+@pytest.mark.parametrize("seed", [None, -1, 1.5, True, "0"])
+def test_a_seed_that_is_no_integer_from_zero_is_refused(seed):
+    x = grid(5, 4)
+    with pytest.raises(ValueError, match="seed must be an integer >= 0"):
+        match(x, x, "geodesic", n_samples=5, resolution=None, seed=seed)
+
+
 def test_result_fields_and_gw_solver():
     x, y = grid(21, 11), rolled_grid(21, 11)
     for solver in ("gmds", "gw"):

@@ -182,6 +182,8 @@ def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", s
     >>> r.relative_distance, r.x_to_y_vertex[:3]                # doctest: +SKIP
     """
     options = _upgrade_options({**deprecated, "search": search}, "match")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if partial:
         from .partial import PARTIAL_METRIC, match_partial
 
