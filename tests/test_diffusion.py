@@ -358,3 +358,14 @@ def test_a_slit_is_not_filled():
     assert fill_holes(m, 10.0) == (m, 0)
     solver = metric_solver(m, "diffusion")
     assert np.all(solver.mass.diagonal() > 0) and np.isfinite(solver.pairwise()).all()
+
+
+def test_an_option_a_metric_does_not_take_is_named():
+    from gromov.metrics import metric_solver
+
+    with pytest.raises(TypeError, match="heat kernel takes no option 'knernel'; its options: tau"):
+        metric_solver(icosphere(1), "diffusion", knernel="heat")
+    with pytest.raises(TypeError, match="geodesic metric takes no option 'tau'"):
+        metric_solver(icosphere(1), "geodesic", tau=0.1)
+    with pytest.raises(TypeError, match="connectivity kernel takes no option 'tau'"):
+        metric_solver(icosphere(1), "diffusion", kernel="connectivity", tau=0.1)

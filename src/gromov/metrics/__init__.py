@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import inspect
 import numbers
 
 import numpy as np
@@ -89,21 +90,32 @@ def metric_solver(shape, metric: str = "diffusion", **options) -> MetricSolver:
             if n_filled:
                 return RestrictedSolver(shape, metric_solver(closed, metric, fill_holes=None, **options))
     if metric == "geodesic":
-        return GeodesicSolver(shape, **options)
+        return _solver(GeodesicSolver, shape, "the geodesic metric", options)
     if metric == "diffusion":
         kernel = options.pop("kernel", "heat")
         if kernel == "heat":
-            return HeatDiffusionSolver(shape, **options)
+            return _solver(HeatDiffusionSolver, shape, "the diffusion metric's heat kernel", options)
         if kernel == "biharmonic":
-            return BiharmonicSolver(shape, **options)
+            return _solver(BiharmonicSolver, shape, "the biharmonic distance", options)
         if kernel not in DIFFUSION_KERNELS:
             raise ValueError(f"diffusion kernel must be one of {DIFFUSION_KERNELS}, got {kernel!r}")
-        return GraphDiffusionSolver(shape, kernel=kernel, **options)
+        return _solver(GraphDiffusionSolver, shape, f"the diffusion metric's {kernel} kernel",
+                       {"kernel": kernel, **options})
     if metric == "euclidean":
         if options:
             raise TypeError(f"the euclidean metric takes no options, got {sorted(options)}")
         return EuclideanSolver(shape)
     raise ValueError(f"metric must be one of {METRICS}, got {metric!r}")
+
+
+def _solver(cls, shape, what: str, options: dict) -> MetricSolver:
+    """``cls(shape, **options)``, an option it does not take named in the error."""
+    takes = list(inspect.signature(cls).parameters)[1:]
+    unknown = sorted(set(options) - set(takes) - {"kernel"})
+    if unknown:
+        raise TypeError(f"{what} takes no option {', '.join(map(repr, unknown))}; its options: "
+                        f"{', '.join(t for t in takes if t != 'kernel')}")
+    return cls(shape, **options)
 
 
 def distance_matrix(shape, metric: str = "diffusion", **options):
