@@ -17,8 +17,8 @@ from .._defaults import (DEFAULT_RESOLUTION, DIFFUSION_RERANK_K, DIFFUSION_RERAN
 from ..errors import GromovError
 from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
                     _nonnegative_int, _positive_float, _positive_int, _rank_tau_scale, _sample_count, _working_size)
-from ._common import (_UserError, _check_memory, _count, _check_neighbors, _check_pieces, _check_png, _dumps, _load,
-                      _stem, _store_of)
+from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _count, _dumps,
+                      _load, _stem, _store_of)
 
 
 def class_from_name(path: str) -> str:

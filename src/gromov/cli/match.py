@@ -11,8 +11,8 @@ from .._atomic import atomic_path, atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
 from ._args import (_add_input_args, _add_metric_args, _metric_options, _nonnegative_float,
                     _nonnegative_int, _norm_arg, _positive_int, _sample_count, _working_size)
-from ._common import (_UserError, _check_memory, _count, _check_neighbors, _check_pieces, _check_npz, _check_png, _close_store,
-                      _dumps, _load, _open_store, _status)
+from ._common import (_UserError, _check_memory, _check_neighbors, _check_npz, _check_pieces, _check_png,
+                      _close_store, _count, _dumps, _load, _open_store, _status)
 
 
 def cmd_match(args) -> int:
