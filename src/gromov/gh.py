@@ -155,7 +155,9 @@ def match(X, Y, metric: str | None = None, *, n_samples: int = 100, norm="l2", s
         (a body turned half about its long axis against the right map: :mod:`gromov.curvature`);
         then the direct map's samples that another place fits far better, with every other
         pair fixed, moved there and GMDS run again while the distortion falls
-        (:mod:`gromov.reseat`, ``RESEAT_ROUNDS``). "ignore": the lowest distortion found.
+        (:mod:`gromov.reseat`, ``RESEAT_ROUNDS``). "ignore": the lowest distortion the search
+        and GMDS find, mirror images included, without those steps (the re-seating can lower
+        the distortion: a "prefer" map may be the less distorted).
     search : SearchOptions, optional
         The initial search's options and GMDS's stopping rule (default: ``SearchOptions()``).
     dense : bool, "input", "zoomout" or "placed", default False

@@ -136,7 +136,8 @@ class MatchResult:
     x_weight: np.ndarray | None = field(repr=False, default=None)
 
     def to_dict(self) -> dict:
-        """The JSON fields of ``gromov match --json``."""
+        """The JSON fields of ``gromov match --json`` but ``metric_options`` (and ``store``),
+        which the command adds: the result does not hold the options its metric was made with."""
         out = {"distance": self.distance, "relative_distance": self.relative_distance,
                "distortion": {"l2": self.distortion_l2, "linf": self.distortion_linf,
                               "trimmed": self.distortion_trimmed, self.norm: self.distortion},

@@ -465,10 +465,11 @@ def gh_matrix(shapes, metric: str = "diffusion", *, n_samples: int = 100, resolu
     PairwiseGH
         The diagonal is zero; entry (i, j) is the estimate of ``match(shapes[i], shapes[j],
         orientation="ignore")`` for i < j, mirrored to (j, i) (GH is symmetric; the two-sided
-        GMDS treats both directions). The distance is the lowest distortion found, a mirror
-        image being as good a correspondence as any: ``orientation`` only decides which map
-        ``results`` holds (where the map found reverses the orientation, ``match`` runs again
-        with ``orientation="prefer"``, whose first steps are the same run). ``trimmed`` holds
+        GMDS treats both directions). The distance is the lowest distortion that search finds, a
+        mirror image being as good a correspondence as any: ``orientation`` only decides which
+        map ``results`` holds (``match`` runs again with ``orientation="prefer"``, whose first
+        steps are the same run; its re-seating of misplaced samples can lower the distortion, so
+        a kept result may be below its matrix entry, which does not depend on what is kept). ``trimmed`` holds
         the trimmed distortion of the same correspondence (:func:`gromov.gmds.trimmed_rms`),
         measured as ``rank_tau_scale`` and ``rank_residual`` say.
     """
