@@ -144,6 +144,13 @@ def test_options_and_contents_make_separate_entries(tmp_path, sheet_files):
     assert opt("diffusion", metric_options={"kernel": "biharmonic"}, rank_tau_scale=0.5)["rank_tau_scale"] is None
     # the CLI's explicit defaults and the library's implicit ones are the same entry
     assert opt("diffusion") == opt("diffusion", metric_options={"kernel": "heat", "fill_holes": 0.5})
+    # ... the heat kernel's units and diffusion time too; another value is another entry
+    def heat(**o):
+        return opt("diffusion", metric_options=o)
+
+    assert heat() == heat(units="raw") == heat(tau=0.005) == heat(units="raw", tau=0.005)
+    assert heat(units="normalized") == heat(units="normalized", tau=0.01) != heat()
+    assert heat(tau=0.01) != heat()
 
 
 def test_a_prepared_shape_metric_is_keyed_by_its_arrays(tmp_path):

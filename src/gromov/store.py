@@ -431,13 +431,19 @@ class ShapeStore:
     def shape_options(metric: str, *, resolution: int | None = DEFAULT_RESOLUTION,
                       metric_options: dict | None = None, rank_tau_scale: float | None = None) -> dict:
         """The per-shape options an entry is keyed by: the diffusion metric's defaults filled in
-        (kernel, hole filling), and ``rank_tau_scale`` only where it applies (the heat kernel)."""
+        (kernel, hole filling; the heat kernel's units and diffusion time), so that a default
+        named and one left out are the same entry, and ``rank_tau_scale`` only where it applies
+        (the heat kernel)."""
         opts = dict(metric_options or {})
         if metric == "diffusion":
             from .metrics import DIFFUSION_FILL_HOLES
+            from .metrics.diffusion import DEFAULT_TAU, DEFAULT_UNITS
 
             opts.setdefault("kernel", "heat")
             opts.setdefault("fill_holes", DIFFUSION_FILL_HOLES)
+            if opts["kernel"] == "heat":
+                opts.setdefault("units", DEFAULT_UNITS)
+                opts.setdefault("tau", DEFAULT_TAU[opts["units"]])
         heat = metric == "diffusion" and opts["kernel"] == "heat"
         return {"metric": metric, "metric_options": _plain(opts),
                 "resolution": None if resolution is None else int(resolution),
