@@ -111,8 +111,14 @@ def _check_output(path: str, option: str, suffix: str, what: str) -> None:
         raise _UserError(f"{option} writes {what}: give a file name ending in {suffix}, got {path!r}")
     if p.is_dir():
         raise _UserError(f"{option} {path} is a folder")
-    if p.parent and not p.parent.exists():
-        raise _UserError(f"{option}: output folder {p.parent} does not exist")
+    _check_folder(path, option)
+
+
+def _check_folder(path: str, option: str) -> None:
+    """An output file's folder exists."""
+    folder = Path(path).parent
+    if not folder.exists():
+        raise _UserError(f"{option}: output folder {folder} does not exist")
 
 
 def _check_png(path: str, option: str) -> None:

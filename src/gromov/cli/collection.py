@@ -17,7 +17,7 @@ from .._defaults import (DEFAULT_RESOLUTION, DIFFUSION_RERANK_K, DIFFUSION_RERAN
 from ..errors import GromovError
 from ._args import (_add_input_args, _add_metric_args, _add_rank_args, _metric_options, _nonnegative_float,
                     _nonnegative_int, _positive_float, _positive_int, _rank_tau_scale, _sample_count, _working_size)
-from ._common import (_UserError, _check_memory, _check_neighbors, _check_pieces, _check_png, _count, _dumps,
+from ._common import (_UserError, _check_folder, _check_memory, _check_neighbors, _check_pieces, _check_png, _count, _dumps,
                       _load, _stem, _store_of)
 
 
@@ -245,8 +245,7 @@ def _pairwise_arguments(args, n: int) -> tuple[list[str] | None, int, bool]:
             raise _UserError(f"--out must end in .npz or .csv, got {args.out!r}")
         if Path(args.out).is_dir():
             raise _UserError(f"--out {args.out} is a folder")
-        if Path(args.out).parent and not Path(args.out).parent.exists():
-            raise _UserError(f"output folder {Path(args.out).parent} does not exist")
+        _check_folder(args.out, "--out")
     if args.k is not None and args.mds:
         raise _UserError("--mds needs every pair; -k matches only each shape's nearest")
     if args.candidates is not None and args.mds:

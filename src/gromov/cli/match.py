@@ -11,7 +11,7 @@ from .._atomic import atomic_path, atomic_savez_compressed
 from .._defaults import DEFAULT_RESOLUTION
 from ._args import (_add_input_args, _add_metric_args, _metric_options, _nonnegative_float,
                     _nonnegative_int, _norm_arg, _positive_int, _sample_count, _working_size)
-from ._common import (_UserError, _check_memory, _check_neighbors, _check_npz, _check_pieces, _check_png,
+from ._common import (_UserError, _check_folder, _check_memory, _check_neighbors, _check_npz, _check_pieces, _check_png,
                       _close_store, _count, _dumps, _load, _open_store, _status)
 
 
@@ -216,12 +216,6 @@ def _match_parser(sub) -> None:
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_input_args(q)
     q.set_defaults(func=cmd_match)
-
-
-def _check_folder(path: str, option: str) -> None:
-    folder = Path(path).parent
-    if str(folder) and not folder.exists():
-        raise _UserError(f"{option}: output folder {folder} does not exist")
 
 
 def _plot_match(r, shapes, args) -> None:

@@ -12,7 +12,7 @@ import numpy as np
 from .._atomic import atomic_savez_compressed
 from .._defaults import CUT_KINDS, CUT_PATCHES, WELD_JOINS
 from ._args import _add_input_args, _nonnegative_int, _positive_int
-from ._common import _UserError, _load, _status, _stem
+from ._common import _UserError, _check_folder, _load, _status, _stem
 
 
 def _check_options(args) -> None:
@@ -56,8 +56,7 @@ def cmd_perturb(args) -> int:
     copy = (f" (sites searched on a {where}-vertex copy)" if where is not None
             and shape.n_vertices > where else "")
     out = Path(args.output)
-    if out.parent and not out.parent.exists():
-        raise _UserError(f"output folder {out.parent} does not exist")
+    _check_folder(out, "OUTPUT")
     if args.kind == "cut":
         kind = args.cut_kind or "plane"
         _status(args, f"cut ({kind}) keeping {args.keep:g} of the area of {shape.n_vertices} vertices")
